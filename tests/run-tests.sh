@@ -1,0 +1,26 @@
+#!/bin/sh
+# Runs every built test program under $1 and every tests/*/test_*.sh script.
+# Exit 0 = pass, 77 = skipped (needs hardware this machine lacks), anything else = fail.
+# Scripts get FACESCAN_BIN (the binaries under test) in their environment.
+set -u
+dir=${1:?usage: run-tests.sh TEST_BIN_DIR}
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+pass=0 fail=0 skip=0 failed=""
+tests=$(find "$dir" -type f -name 'test_*' -perm -u+x 2>/dev/null | sort)
+scripts=$(ls tests/*/test_*.sh 2>/dev/null | sort)
+for t in $tests $scripts; do
+	name=${t#"$dir"/}
+	printf '=== %s\n' "$name"
+	start=$(date +%s)
+	"$t"
+	rc=$?
+	secs=$(( $(date +%s) - start ))
+	case $rc in
+	0) pass=$((pass + 1)); printf '=== %s: PASS (%ss)\n' "$name" "$secs" ;;
+	77) skip=$((skip + 1)); printf '=== %s: SKIP (needs hardware, see above)\n' "$name" ;;
+	*) fail=$((fail + 1)); failed="$failed $name"; printf '=== %s: FAIL (exit %s)\n' "$name" "$rc" ;;
+	esac
+done
+printf '\n%d passed, %d skipped, %d failed\n' "$pass" "$skip" "$fail"
+[ "$fail" -eq 0 ] || { printf 'failed:%s\n' "$failed"; exit 1; }

@@ -1,0 +1,47 @@
+// facescan — one CLI with git-style verbs: `facescan <verb> [options]`.
+#include "verbs.hpp"
+#include "common/version.hpp"
+
+#include <cstdio>
+#include <cstring>
+#include <iterator>
+
+using facescan::cli::Verb;
+
+// One line per verb; the implementation stays with the component it drives.
+namespace facescan::cli {
+} // namespace facescan::cli
+
+static const Verb verbs[] = {
+	{"version", "print the software version", nullptr},
+};
+
+static void usage(FILE *out)
+{
+	std::fprintf(out, "usage: facescan <verb> [options]   (facescan <verb> --help for details)\n\n"
+			  "verbs:\n");
+	for (const Verb &v : verbs)
+		std::fprintf(out, "  %-12s %s\n", v.name, v.summary);
+}
+
+int main(int argc, char **argv)
+{
+	if (argc < 2) {
+		usage(stderr);
+		return 2;
+	}
+	const char *name = argv[1];
+	if (!std::strcmp(name, "--help") || !std::strcmp(name, "-h") || !std::strcmp(name, "help")) {
+		usage(stdout);
+		return 0;
+	}
+	if (!std::strcmp(name, "version") || !std::strcmp(name, "--version")) {
+		std::printf("facescan %s\n", facescan::version());
+		return 0;
+	}
+	for (const Verb &v : verbs)
+		if (v.main && !std::strcmp(name, v.name))
+			return v.main(argc - 1, argv + 1);
+	std::fprintf(stderr, "facescan: '%s' is not a verb (see facescan --help)\n", name);
+	return 2;
+}
