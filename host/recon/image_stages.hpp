@@ -1,0 +1,183 @@
+// Image side of the reconstruction (issue 3, stages 1-5): from one camera frame to decoded squares
+// with sub-pixel corners, and from two cameras' detections to matched image points.
+//
+//   detect_squares(frame)  = intensity → find_squares → corners (force field + sub-pixel)
+//                            → classify_letters (adaptive hue) → link_grid → decode_cells
+//   match_pair(a, b)       = same cell id + epipolar constraint + depth plausibility, one copy of
+//                            the slide at a time (three projectors throw the same slide).
+//
+// Every sub-stage is a free function with its Params struct; none does I/O or logs.
+// Image coordinates are distorted pixels with the OpenCV convention (pixel centres at integers).
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "pattern/pattern.hpp"
+#include "recon/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <array>
+#include <vector>
+
+namespace facescan::recon {
+
+// ---- stage 1a: HSI ---------------------------------------------------------------------------
+
+/// The paper's HSI planes, CV_32F, all on 0..255 (hue 0..255 ≙ 0..360°, 0 where saturation is 0).
+struct HsiImage {
+	cv::Mat h, s, i;
+};
+/// Whole-frame HSI conversion (Gonzalez & Woods). detect_squares only needs the intensity plane
+/// and per-square colours, so it calls bgr_to_intensity and hsi_of_bgr instead.
+Status bgr_to_hsi(const cv::Mat &bgr, HsiImage *ret_hsi);
+/// I = (B + G + R) / 3 as CV_32F.
+Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity);
+/// HSI of one colour (B, G, R order, 0..255): hue 0..255, saturation 0..255, intensity 0..255.
+cv::Vec3d hsi_of_bgr(const cv::Vec3d &bgr);
+
+// ---- stage 1b: squares on intensity ----------------------------------------------------------
+
+struct SquareParams {
+	/// Side of the first-pass local-mean window in pixels; 0 = derive from the image size.
+	int first_window_px = 0;
+	/// Local-mean window for the final pass, in estimated pitches.
+	double window_pitches = 2.0;
+	/// Square accepted when its area is within [min, max] times the median square area.
+	double min_area_ratio = 0.2, max_area_ratio = 3.0;
+	double min_area_px = 25;	// absolute floor (noise specks)
+	double min_solidity = 0.80;	// area / convex hull area
+	/// Minimum contrast (inside - outside level) over the inside level.
+	double min_contrast = 0.25;
+};
+
+/// A detected square's pixels: its binary mask inside `box`, and its local light levels.
+struct SquareBlob {
+	cv::Rect box;		// image pixels
+	cv::Mat mask;		// CV_8U 0/255, box.size()
+	double inside = 0;	// median intensity inside the square
+	double outside = 0;	// median intensity of the gap around it
+};
+
+/// Finds the pattern's squares on the intensity plane: local-mean threshold, blob filtering,
+/// then a per-square threshold at the midpoint of its own inside and gap levels. Fills centroid
+/// (area centroid) and area of each Square; blobs[i] belongs to squares[i].
+Status find_squares(const cv::Mat &intensity, const SquareParams &params,
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs);
+
+// ---- stage 5: force-field corners + sub-pixel refinement -------------------------------------
+
+struct CornerParams {
+	bool subpixel = true;
+	/// Edge samples are taken on each side between these fractions of its length.
+	double side_margin = 0.12;
+	int samples_per_side = 12;
+	/// Half length of the intensity profile across an edge, in pixels (clamped to the gap).
+	double profile_half_px = 4.0;
+	/// A refined corner further than this from its force-field estimate is rejected.
+	double max_shift_px = 3.0;
+	/// Line-fit RMS above which the square's corners are rejected, pixels.
+	double max_fit_rms_px = 0.8;
+};
+
+/// The paper's force-field corners of a binary square (CV_8U, non-zero inside): on the square's
+/// boundary pixels, F_h / F_v = length of the horizontal / vertical boundary run through the
+/// pixel, F_total = F_h + F_v; the bounding box is split in four quadrants and each quadrant's
+/// corner is the F_total maximum (ties: mean position of the tied pixels). Returns corners in
+/// mask pixel coordinates, image-sense order TL, TR, BR, BL. -EINVAL for an empty mask.
+Status force_field_corners(const cv::Mat &mask, std::array<cv::Point2d, 4> *ret_corners);
+
+/// Sub-pixel refinement: each side's edge is located at the midpoint level between the square's
+/// inside and gap intensity along profiles across it, a line is fitted per side and adjacent
+/// lines are intersected. `corners` (image pixels, TL TR BR BL) are the initial estimate.
+/// -ERANGE when the fit is poor or moves a corner more than max_shift_px (corners untouched).
+Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const CornerParams &params,
+		      std::array<cv::Point2d, 4> *corners);
+
+/// Runs force_field_corners (+ refine_corners) on every square; sets corners/has_corners, and
+/// the centroid to the diagonals' intersection (projectively invariant, so the same surface point
+/// in both cameras) where corners were found.
+void detect_corners(const cv::Mat &intensity, const std::vector<SquareBlob> &blobs,
+		    const CornerParams &params, std::vector<Square> *squares);
+
+// ---- stage 1c: letters from hue, adaptive per capture ----------------------------------------
+
+struct HueParams {
+	int iterations = 8;		// k-means iterations on the hue circle
+	double min_saturation = 0.08;	// chroma / intensity below which a square has no letter
+	/// Squares whose inside colour spread (circular hue std, degrees) exceeds this are mixed
+	/// (projector seams) and get no letter.
+	double max_hue_spread_deg = 25;
+	/// Confidence below which the letter is dropped (letter = -1, kept as a decodable gap).
+	double min_confidence = 0.3;
+};
+
+/// Classifies each square's letter from its inside colour: white-balanced against the capture's
+/// mean square colour, then a k-means on the hue circle seeded at the pattern's letter hues.
+/// Confidence = margin between the nearest and second nearest cluster (0..1).
+Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
+			const Pattern &pattern, const HueParams &params, std::vector<Square> *squares);
+
+// ---- stage 2: grid topology ------------------------------------------------------------------
+
+struct GridParams {
+	/// Allowed deviation of a neighbour's position from one pitch, in pitches (in the square's
+	/// own projective frame).
+	double tolerance = 0.35;
+};
+
+/// Links each square to its up/left/right/down neighbour in the slide's sense: the square's own
+/// corners define a local homography to slide units, in which the neighbour's centre must lie
+/// one pitch away. Links are kept only when mutual. `gap_fraction` is the slide's.
+void link_grid(double gap_fraction, const GridParams &params, std::vector<Square> *squares);
+
+// ---- stage 3: decoding -----------------------------------------------------------------------
+
+struct DecodeParams {
+	/// Correct one wrong or missing letter when exactly one cell's word fits.
+	bool correct = true;
+	/// A decoded cell needs this many neighbours whose cells agree (grid consistency).
+	int min_support = 1;
+	/// Rounds of propagation of cell ids from decoded neighbours (border squares, gaps).
+	int propagate_rounds = 3;
+};
+
+/// Decodes the code word (up, left, centre, right, down) of each square to its matrix cell,
+/// corrects single errors, checks neighbour agreement, propagates ids to undecoded neighbours.
+/// Sets cell/corrected per square and detected/decoded/corrected/rejected of `dets`.
+void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDetections *dets);
+
+// ---- stages 1-3 + 5 for one camera -----------------------------------------------------------
+
+struct DetectParams {
+	SquareParams squares;
+	CornerParams corners;
+	HueParams hue;
+	GridParams grid;
+	DecodeParams decode;
+};
+
+/// One camera frame (8-bit BGR) → its squares with letters, neighbours, cells and corners.
+/// ret->camera is left as the caller set it. -EINVAL for an empty or non-BGR frame.
+Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectParams &params,
+		      CameraDetections *ret);
+
+// ---- stage 4: correspondence ------------------------------------------------------------------
+
+struct MatchParams {
+	double max_epipolar_px = 2.0;	// symmetric distance to the epipolar line, pixels
+	/// Plausible depth of a matched point in camera a's frame, mm (rejects wrong slide copies).
+	double min_depth_mm = 150, max_depth_mm = 1500;
+	bool corners = true;		// also match the 4 corners of matched squares
+	double max_corner_epipolar_px = 1.5;
+};
+
+/// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same
+/// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth;
+/// a cell with several candidates (the three projector copies) is kept only when exactly one
+/// candidate is geometrically consistent (rejected_ambiguous otherwise).
+Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
+		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
+		  PairMatches *ret);
+
+} // namespace facescan::recon
