@@ -28,7 +28,7 @@ WARN := -Wall -Wextra -Werror
 # System headers (OpenCV, Eigen, libcamera) go in with -isystem so that -Werror judges our code only.
 PKGS := opencv4 eigen3 libcamera libgpiod cmocka
 PKG_CFLAGS := $(patsubst -I%,-isystem %,$(shell pkg-config --cflags $(PKGS) 2>/dev/null))
-INCLUDES := -Ifirmware -Idrivers/include -Ihost -Itools
+INCLUDES := -Ifirmware -Idrivers/include -Ihost -Itools -Itests
 DEPFLAGS = -MMD -MP
 CFLAGS   := -std=gnu11 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
 CXXFLAGS := -std=gnu++17 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
@@ -64,29 +64,36 @@ tests: $(TEST_BINS) $(BINS)
 deps:
 	@./tools/install-deps.sh
 
+# Quiet by default; V=1 shows whole command lines.
+Q := $(if $(V),,@)
 $(OUT)/obj/%.c.o: %.c
 	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+	@$(if $(V),,echo "  CC    $<")
+	$(Q)$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
 $(OUT)/obj/%.cpp.o: %.cpp
 	@mkdir -p $(dir $@)
-	$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+	@$(if $(V),,echo "  CXX   $<")
+	$(Q)$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
 
 $(LIB): $(LIB_OBJ)
 	@mkdir -p $(dir $@)
 	@rm -f $@
-	ar rcs $@ $^
+	@$(if $(V),,echo "  AR    $@")
+	$(Q)ar rcs $@ $^
 
 define BIN_RULE
 $(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(1)))): $(OUT)/obj/$(1).o $(LIB)
 	@mkdir -p $$(dir $$@)
-	$$(CXX) $$(LDFLAGS) -o $$@ $$< -Wl,--start-group $$(LIB) -Wl,--end-group $$(LDLIBS)
+	@$$(if $$(V),,echo "  LD    $$@")
+	$$(Q)$$(CXX) $$(LDFLAGS) -o $$@ $$< -Wl,--start-group $$(LIB) -Wl,--end-group $$(LDLIBS)
 endef
 $(foreach m,$(MAIN_SRC),$(eval $(call BIN_RULE,$(m))))
 
 .SECONDEXPANSION:
 $(OUT)/tests/%: $(OUT)/obj/tests/%.$$(if $$(wildcard tests/$$*.cpp),cpp,c).o $(LIB)
 	@mkdir -p $(dir $@)
-	$(CXX) $(LDFLAGS) -o $@ $< $(shell cat tests/$*.ldflags 2>/dev/null) \
+	@$(if $(V),,echo "  LD    $@")
+	$(Q)$(CXX) $(LDFLAGS) -o $@ $< $(shell cat tests/$*.ldflags 2>/dev/null) \
 		-Wl,--start-group $(LIB) -Wl,--end-group $(LDLIBS) -lcmocka
 
 # ---- the two commands the README names -----------------------------------------------

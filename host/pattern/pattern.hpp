@@ -25,7 +25,8 @@ struct CodeMatrixSpec {
 	int letters = 3;
 	int rows = 14;	// 12 x 17 = 204 decodable interior cells of the 3^5 = 243 possible
 	int cols = 19;	// 19:14 ≈ 4:3, the projector's aspect
-	uint32_t seed = 0; // first seed of the search; the search tries seed, seed+1, ...
+	uint32_t seed = 2; // first seed of the search (tries seed, seed+1, ...); 2 succeeds at once
+	int attempts = 64; // seeds tried before giving up
 	CodeWindow window = CodeWindow::Cross5;
 };
 

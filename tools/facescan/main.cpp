@@ -10,10 +10,12 @@ using facescan::cli::Verb;
 
 // One line per verb; the implementation stays with the component it drives.
 namespace facescan::cli {
+int pattern_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
 	{"version", "print the software version", nullptr},
+	{"pattern", "generate the code matrix and the projector slide", facescan::cli::pattern_main},
 };
 
 static void usage(FILE *out)
