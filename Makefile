@@ -57,7 +57,9 @@ EXTRA_ALL :=
 -include $(wildcard firmware/*.mk tools/*.mk tests/*.mk)
 
 .PHONY: all bins tests test demo bench deps clean format
-all: deps bins $(EXTRA_ALL)
+# Targets that need the packages re-enter make after deps, so pkg-config is read once they exist.
+all: deps
+	@$(MAKE) --no-print-directory bins $(EXTRA_ALL)
 bins: $(BINS)
 tests: $(TEST_BINS) $(BINS)
 
