@@ -1,0 +1,93 @@
+/* Common part of the storage driver: argument checks and the relpath rule. */
+#include "storage_internal.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+
+int fscan_storage_check_relpath(const char *relpath)
+{
+	if (!relpath || !*relpath || relpath[0] == '/')
+		return -EINVAL;
+	size_t total = strlen(relpath);
+	if (total > FSCAN_STORAGE_MAX_RELPATH)
+		return -EINVAL;
+	const char *p = relpath;
+	while (*p) {
+		const char *end = strchr(p, '/');
+		size_t n = end ? (size_t)(end - p) : strlen(p);
+		if (n == 0 || n > FSCAN_STORAGE_MAX_NAME)
+			return -EINVAL;
+		if ((n == 1 && p[0] == '.') || (n == 2 && p[0] == '.' && p[1] == '.'))
+			return -EINVAL;
+		for (size_t i = 0; i < n; i++)
+			if ((unsigned char)p[i] < 0x20 || p[i] == 0x7f)
+				return -EINVAL;
+		if (!end)
+			break;
+		p = end + 1;
+		if (!*p) /* trailing slash: no file name */
+			return -EINVAL;
+	}
+	return 0;
+}
+
+int fscan_storage_create(const struct fscan_storage_ops *ops, const struct fscan_storage_config *cfg,
+			 struct fscan_storage **ret_storage)
+{
+	if (!ops || !cfg || !ret_storage || !cfg->share_dir || !cfg->spool_dir || !*cfg->share_dir ||
+	    !*cfg->spool_dir)
+		return -EINVAL;
+	struct fscan_storage *st = calloc(1, sizeof(*st));
+	if (!st)
+		return -ENOMEM;
+	st->ops = ops;
+	int r = ops->open(cfg, &st->ctx);
+	if (r < 0) {
+		free(st);
+		return r;
+	}
+	*ret_storage = st;
+	return 0;
+}
+
+void fscan_storage_destroy(struct fscan_storage *storage)
+{
+	if (!storage)
+		return;
+	storage->ops->close(storage->ctx);
+	free(storage);
+}
+
+int fscan_storage_put(struct fscan_storage *storage, const char *relpath, const void *data, size_t len)
+{
+	if (!storage || (!data && len))
+		return -EINVAL;
+	int r = fscan_storage_check_relpath(relpath);
+	if (r < 0)
+		return r;
+	return storage->ops->put(storage->ctx, relpath, data, len);
+}
+
+int fscan_storage_flush(struct fscan_storage *storage, unsigned *ret_delivered)
+{
+	if (!storage)
+		return -EINVAL;
+	unsigned n = 0;
+	int r = storage->ops->flush(storage->ctx, &n);
+	if (ret_delivered)
+		*ret_delivered = n;
+	return r;
+}
+
+int fscan_storage_pending(struct fscan_storage *storage)
+{
+	return storage ? storage->ops->pending(storage->ctx) : -EINVAL;
+}
+
+int fscan_storage_share_free(struct fscan_storage *storage, uint64_t *ret_bytes)
+{
+	if (!storage || !ret_bytes)
+		return -EINVAL;
+	return storage->ops->share_free(storage->ctx, ret_bytes);
+}
