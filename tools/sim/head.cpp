@@ -1,0 +1,341 @@
+// The procedural head: an implicit surface (smooth unions of ellipsoids, cones and capsules
+// placed by adult anthropometry) polygonised by surface nets, vertices projected back onto
+// the surface, normals from the field's gradient, albedo painted from the 3-D position.
+#include "sim/internal.hpp"
+
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::sim {
+
+namespace {
+
+using V3 = cv::Vec3f;
+
+inline float len(const V3 &v)
+{
+	return std::sqrt(v.dot(v));
+}
+
+// Smooth minimum (polynomial, blend width k) and its subtraction counterpart.
+inline float smin(float a, float b, float k)
+{
+	float h = std::max(k - std::fabs(a - b), 0.f) / k;
+	return std::min(a, b) - h * h * k * 0.25f;
+}
+inline float ssub(float a, float b, float k) // a minus b
+{
+	return -smin(-a, b, k);
+}
+
+// Approximate signed distance to an axis-aligned ellipsoid (Quilez's bound).
+inline float ellipsoid(const V3 &p, const V3 &c, const V3 &r)
+{
+	V3 q = p - c;
+	V3 a(q[0] / r[0], q[1] / r[1], q[2] / r[2]);
+	V3 b(q[0] / (r[0] * r[0]), q[1] / (r[1] * r[1]), q[2] / (r[2] * r[2]));
+	float k0 = len(a), k1 = len(b);
+	if (k1 < 1e-9f)
+		return -std::min(r[0], std::min(r[1], r[2]));
+	return k0 * (k0 - 1.f) / k1;
+}
+
+// Round cone: spheres of radius ra at a and rb at b joined by their tangent cone.
+inline float round_cone(const V3 &p, const V3 &a, const V3 &b, float ra, float rb)
+{
+	V3 ba = b - a, pa = p - a;
+	float l2 = ba.dot(ba);
+	float t = std::clamp(pa.dot(ba) / l2, 0.f, 1.f);
+	V3 q = pa - ba * t;
+	return len(q) - (ra + (rb - ra) * t);
+}
+
+inline float capsule(const V3 &p, const V3 &a, const V3 &b, float r)
+{
+	return round_cone(p, a, b, r, r);
+}
+
+// p rotated about +y by -angle around centre c, for shapes tilted by `angle`.
+inline V3 rot_y(const V3 &p, const V3 &c, float cs, float sn)
+{
+	V3 q = p - c;
+	return c + V3(cs * q[0] - sn * q[2], q[1], sn * q[0] + cs * q[2]);
+}
+
+// The head's field: negative inside. Both sides are built from the same half by mirroring x.
+float head_field(const V3 &p0)
+{
+	V3 p(std::fabs(p0[0]), p0[1], p0[2]); // symmetric parts use |x|
+	// Cranium and face.
+	float d = ellipsoid(p0, V3(0, 22, -10), V3(75, 98, 97));
+	d = smin(d, ellipsoid(p0, V3(0, -35, 22), V3(60, 72, 70)), 24);
+	// Lower jaw towards the gonion, and the chin.
+	d = smin(d, capsule(p, V3(42, -74, 0), V3(14, -98, 60), 13), 22);
+	d = smin(d, ellipsoid(p0, V3(0, -98, 72), V3(22, 14, 16)), 16);
+	// Neck, cut flat at the bottom.
+	d = smin(d, capsule(p0, V3(0, -70, -22), V3(0, -230, -32), 54), 24);
+	d = std::max(d, -(p0[1] + 205.f));
+	// Forehead fullness and brow ridge.
+	d = smin(d, ellipsoid(p0, V3(0, 45, 52), V3(62, 42, 36)), 18);
+	d = smin(d, ellipsoid(p, V3(26, 13, 80), V3(24, 8, 10)), 10);
+	// Cheekbones and cheeks.
+	d = smin(d, ellipsoid(p, V3(48, -8, 56), V3(16, 10, 15)), 18);
+	d = smin(d, ellipsoid(p, V3(36, -30, 60), V3(22, 24, 20)), 24);
+	// Eye sockets, then the eyes in them.
+	d = ssub(d, ellipsoid(p, V3(32, 3, 90), V3(19, 11, 16)), 7);
+	d = smin(d, ellipsoid(p, V3(32, 1, 70), V3(12, 12, 12)), 1.5f);
+	// Nose: bridge to tip, alae, nostrils.
+	d = smin(d, round_cone(p0, V3(0, 8, 85), V3(0, -30, 111), 6.f, 8.5f), 7);
+	d = smin(d, ellipsoid(p, V3(11, -37, 96), V3(8, 7, 9)), 8);
+	d = ssub(d, ellipsoid(p, V3(7, -44, 99), V3(4, 2.5f, 5.5f)), 2);
+	// Lips and the mouth line.
+	d = smin(d, ellipsoid(p0, V3(0, -59, 86), V3(24, 7, 9)), 8);
+	d = smin(d, ellipsoid(p0, V3(0, -72, 84), V3(21, 7, 9)), 8);
+	d = ssub(d, ellipsoid(p0, V3(0, -65.5f, 95), V3(24, 1.2f, 9)), 2);
+	// Ears: a tilted disc flaring out behind the jaw, with the concha hollowed out.
+	const float cs = std::cos(0.35f), sn = std::sin(0.35f);
+	V3 e = rot_y(p, V3(76, -12, -14), cs, sn);
+	float ear = ellipsoid(e, V3(76, -12, -14), V3(6, 31, 18));
+	ear = ssub(ear, ellipsoid(e, V3(82, -16, -11), V3(5, 13, 9)), 3);
+	d = smin(d, ear, 5);
+	return d;
+}
+
+V3 field_gradient(const V3 &p)
+{
+	const float h = 0.05f;
+	V3 g(head_field(p + V3(h, 0, 0)) - head_field(p - V3(h, 0, 0)),
+	     head_field(p + V3(0, h, 0)) - head_field(p - V3(0, h, 0)),
+	     head_field(p + V3(0, 0, h)) - head_field(p - V3(0, 0, h)));
+	return g * (0.5f / h);
+}
+
+inline float smoothstep(float e0, float e1, float x)
+{
+	float t = std::clamp((x - e0) / (e1 - e0), 0.f, 1.f);
+	return t * t * (3 - 2 * t);
+}
+
+// Value noise on a 3-D lattice (trilinear, smooth-stepped), 0..1, for skin blotches.
+float value_noise(const V3 &p, float scale, uint64_t key)
+{
+	V3 q = p * (1.f / scale);
+	float fx = std::floor(q[0]), fy = std::floor(q[1]), fz = std::floor(q[2]);
+	float tx = q[0] - fx, ty = q[1] - fy, tz = q[2] - fz;
+	tx = tx * tx * (3 - 2 * tx);
+	ty = ty * ty * (3 - 2 * ty);
+	tz = tz * tz * (3 - 2 * tz);
+	auto at = [&](int dx, int dy, int dz) {
+		uint64_t h = uint64_t(int64_t(fx) + dx) * 73856093ULL ^
+			     uint64_t(int64_t(fy) + dy) * 19349663ULL ^
+			     uint64_t(int64_t(fz) + dz) * 83492791ULL;
+		return float(internal::uniform01(key, h));
+	};
+	float c00 = at(0, 0, 0) * (1 - tx) + at(1, 0, 0) * tx;
+	float c10 = at(0, 1, 0) * (1 - tx) + at(1, 1, 0) * tx;
+	float c01 = at(0, 0, 1) * (1 - tx) + at(1, 0, 1) * tx;
+	float c11 = at(0, 1, 1) * (1 - tx) + at(1, 1, 1) * tx;
+	float c0 = c00 * (1 - ty) + c10 * ty, c1 = c01 * (1 - ty) + c11 * ty;
+	return c0 * (1 - tz) + c1 * tz;
+}
+
+V3 mix(const V3 &a, const V3 &b, float t)
+{
+	return a * (1 - t) + b * t;
+}
+
+// Linear albedo at a point of the head (head coordinates).
+V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key)
+{
+	V3 p(std::fabs(p0[0]), p0[1], p0[2]);
+	// Skin: blotches at two scales, redder cheeks and nose tip, slightly darker neck.
+	float n = 0.6f * value_noise(p0, 14, key) + 0.4f * value_noise(p0, 4, key + 1);
+	V3 c = skin * (0.92f + 0.16f * n);
+	float cheek = std::exp(-((p[0] - 40) * (p[0] - 40) + (p[1] + 28) * (p[1] + 28)) / 500.f) *
+		      smoothstep(30, 60, p[2]);
+	float nose = std::exp(-(p[0] * p[0] + (p[1] + 33) * (p[1] + 33)) / 120.f) * smoothstep(95, 105, p[2]);
+	float red = std::min(1.f, 0.5f * cheek + 0.4f * nose);
+	c = V3(c[0] * (1 + 0.06f * red), c[1] * (1 - 0.10f * red), c[2] * (1 - 0.08f * red));
+	c *= 1.f - 0.08f * smoothstep(-100, -140, p[1]);
+	// Lips: redder and darker, fading out at the vermilion border.
+	float lip = smoothstep(1.f, 0.7f,
+			       std::sqrt(p[0] * p[0] / (24.f * 24.f) + (p[1] + 65.5f) * (p[1] + 65.5f) / (13.f * 13.f))) *
+		    smoothstep(78, 86, p[2]);
+	c = mix(c, V3(skin[0] * 0.78f, skin[1] * 0.45f, skin[2] * 0.50f), lip);
+	// Eyes: sclera, iris, pupil on the eyeball's front.
+	V3 eye_c(32, 1, 70);
+	V3 q = p - eye_c;
+	if (std::fabs(len(q) - 12) < 1.2f && q[2] > 0) {
+		float r = std::sqrt(q[0] * q[0] + q[1] * q[1]);
+		V3 sclera(0.70f, 0.66f, 0.62f), iris(0.16f, 0.10f, 0.05f), pupil(0.015f, 0.015f, 0.015f);
+		V3 e = mix(sclera, iris, smoothstep(6.2f, 5.6f, r));
+		c = mix(e, pupil, smoothstep(2.6f, 2.1f, r));
+	}
+	// Brows: an arc of hair over each socket, with strands from the noise.
+	float bx = (p[0] - 31) / 20.f, by = p[1] - (17 - 4 * bx * bx);
+	float brow = smoothstep(1.05f, 0.85f, std::fabs(bx)) * smoothstep(4.5f, 2.5f, std::fabs(by)) *
+		     smoothstep(70, 80, p[2]);
+	brow *= 0.6f + 0.4f * value_noise(p0, 1.2f, key + 2);
+	V3 hair(0.045f, 0.032f, 0.024f);
+	c = mix(c, hair, brow);
+	// Scalp hair above a hairline that falls from the forehead to the nape.
+	float az = std::atan2(p[0], p[2]); // 0 in front, pi at the back
+	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
+	line = std::max(line, -75.f);
+	bool ear_zone = p[0] > 66 && p[1] < 22 && p[1] > -48 && p[2] < 10 && p[2] > -38;
+	float h = smoothstep(line - 3, line + 3, p[1]) * (ear_zone ? 0.f : 1.f);
+	h *= 0.85f + 0.15f * value_noise(p0, 2, key + 3);
+	c = mix(c, hair * (0.8f + 0.5f * value_noise(p0, 6, key + 4)), h);
+	for (int k = 0; k < 3; k++)
+		c[k] = std::clamp(c[k], 0.005f, 0.95f);
+	return c;
+}
+
+} // namespace
+
+Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
+{
+	if (!(spec.cell_mm >= 0.4 && spec.cell_mm <= 8))
+		return Status::error(-EINVAL, "head cell_mm " + std::to_string(spec.cell_mm) +
+						      " out of range [0.4, 8]");
+	for (int k = 0; k < 3; k++)
+		if (!(skin[k] >= 0 && skin[k] <= 1))
+			return Status::error(-EINVAL, "skin albedo must lie in 0..1");
+	const float h = float(spec.cell_mm);
+	const V3 lo(-104, -212, -122), hi(104, 136, 132);
+	const int nx = int(std::ceil((hi[0] - lo[0]) / h)) + 1;
+	const int ny = int(std::ceil((hi[1] - lo[1]) / h)) + 1;
+	const int nz = int(std::ceil((hi[2] - lo[2]) / h)) + 1;
+	auto idx = [&](int i, int j, int k) { return (size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i); };
+	auto point = [&](int i, int j, int k) { return lo + V3(float(i) * h, float(j) * h, float(k) * h); };
+
+	// Coarse pass every 4 samples; fine samples only near the surface (the field is a
+	// distance bound, so far samples keep a coarse value with the right sign).
+	std::vector<float> f(size_t(nx) * size_t(ny) * size_t(nz), 0.f);
+	const int s = 4;
+	const int cx = (nx - 1) / s + 2, cy = (ny - 1) / s + 2, cz = (nz - 1) / s + 2;
+	std::vector<float> coarse(size_t(cx) * size_t(cy) * size_t(cz));
+	cv::parallel_for_(cv::Range(0, cz), [&](const cv::Range &r) {
+		for (int k = r.start; k < r.end; k++)
+			for (int j = 0; j < cy; j++)
+				for (int i = 0; i < cx; i++)
+					coarse[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] =
+						head_field(point(i * s, j * s, k * s));
+	});
+	const float band = float(s) * h * 1.8f;
+	cv::parallel_for_(cv::Range(0, nz), [&](const cv::Range &r) {
+		for (int k = r.start; k < r.end; k++)
+			for (int j = 0; j < ny; j++)
+				for (int i = 0; i < nx; i++) {
+					int ci = (i + s / 2) / s, cj = (j + s / 2) / s, ck = (k + s / 2) / s;
+					float c = coarse[(size_t(ck) * size_t(cy) + size_t(cj)) * size_t(cx) + size_t(ci)];
+					f[idx(i, j, k)] = std::fabs(c) > band ? c : head_field(point(i, j, k));
+				}
+	});
+
+	// Surface nets: one vertex per cell with a sign change, at the mean of its edge crossings.
+	Mesh m;
+	std::vector<int> cell_vertex(size_t(nx) * size_t(ny) * size_t(nz), -1);
+	static const int corner[8][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0},
+					 {0, 0, 1}, {1, 0, 1}, {0, 1, 1}, {1, 1, 1}};
+	static const int edge[12][2] = {{0, 1}, {2, 3}, {4, 5}, {6, 7}, {0, 2}, {1, 3},
+					{4, 6}, {5, 7}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+	for (int k = 0; k + 1 < nz; k++)
+		for (int j = 0; j + 1 < ny; j++)
+			for (int i = 0; i + 1 < nx; i++) {
+				float v[8];
+				int inside = 0;
+				for (int c = 0; c < 8; c++) {
+					v[c] = f[idx(i + corner[c][0], j + corner[c][1], k + corner[c][2])];
+					inside += v[c] < 0;
+				}
+				if (inside == 0 || inside == 8)
+					continue;
+				V3 sum(0, 0, 0);
+				int count = 0;
+				for (const auto &e : edge) {
+					float a = v[e[0]], b = v[e[1]];
+					if ((a < 0) == (b < 0))
+						continue;
+					float t = a / (a - b);
+					V3 pa = point(i + corner[e[0]][0], j + corner[e[0]][1], k + corner[e[0]][2]);
+					V3 pb = point(i + corner[e[1]][0], j + corner[e[1]][1], k + corner[e[1]][2]);
+					sum += pa + (pb - pa) * t;
+					count++;
+				}
+				cell_vertex[idx(i, j, k)] = int(m.vertices.size());
+				m.vertices.push_back(sum * (1.f / float(count)));
+			}
+	// One quad per grid edge with a sign change, joining the 4 cells around the edge.
+	auto quad = [&](int a, int b, int c, int d) {
+		if (a < 0 || b < 0 || c < 0 || d < 0)
+			return;
+		const V3 &pa = m.vertices[size_t(a)], &pb = m.vertices[size_t(b)],
+			 &pc = m.vertices[size_t(c)], &pd = m.vertices[size_t(d)];
+		if (len(pa - pc) <= len(pb - pd)) {
+			m.triangles.push_back(cv::Vec3i(a, b, c));
+			m.triangles.push_back(cv::Vec3i(a, c, d));
+		} else {
+			m.triangles.push_back(cv::Vec3i(a, b, d));
+			m.triangles.push_back(cv::Vec3i(b, c, d));
+		}
+	};
+	for (int k = 1; k + 1 < nz; k++)
+		for (int j = 1; j + 1 < ny; j++)
+			for (int i = 1; i + 1 < nx; i++) {
+				bool in = f[idx(i, j, k)] < 0;
+				if (in != (f[idx(i + 1, j, k)] < 0))
+					quad(cell_vertex[idx(i, j - 1, k - 1)], cell_vertex[idx(i, j, k - 1)],
+					     cell_vertex[idx(i, j, k)], cell_vertex[idx(i, j - 1, k)]);
+				if (in != (f[idx(i, j + 1, k)] < 0))
+					quad(cell_vertex[idx(i - 1, j, k - 1)], cell_vertex[idx(i, j, k - 1)],
+					     cell_vertex[idx(i, j, k)], cell_vertex[idx(i - 1, j, k)]);
+				if (in != (f[idx(i, j, k + 1)] < 0))
+					quad(cell_vertex[idx(i - 1, j - 1, k)], cell_vertex[idx(i, j - 1, k)],
+					     cell_vertex[idx(i, j, k)], cell_vertex[idx(i - 1, j, k)]);
+			}
+	f.clear();
+	f.shrink_to_fit();
+	cell_vertex.clear();
+	cell_vertex.shrink_to_fit();
+
+	// Project vertices onto the surface (Newton on the field), normals from the gradient,
+	// albedo painted from the position.
+	const uint64_t key = internal::mix64(spec.seed ^ 0x5ea1f00dULL);
+	m.normals.resize(m.vertices.size());
+	m.colors.resize(m.vertices.size());
+	cv::parallel_for_(cv::Range(0, int(m.vertices.size())), [&](const cv::Range &r) {
+		for (int vi = r.start; vi < r.end; vi++) {
+			V3 p = m.vertices[size_t(vi)];
+			for (int it = 0; it < 4; it++) {
+				V3 g = field_gradient(p);
+				float g2 = g.dot(g);
+				if (g2 < 1e-8f)
+					break;
+				V3 step = g * (head_field(p) / g2);
+				if (len(step) > h) // stay in the neighbourhood of the cell
+					step *= h / len(step);
+				p -= step;
+			}
+			V3 g = field_gradient(p);
+			float gl = len(g);
+			m.vertices[size_t(vi)] = p;
+			m.normals[size_t(vi)] = gl > 1e-8f ? g * (1.f / gl) : V3(0, 0, 1);
+			m.colors[size_t(vi)] = head_albedo(p, skin, key);
+		}
+	});
+	// Orient every triangle outwards (the quad winding above depends on the crossing sign).
+	for (cv::Vec3i &t : m.triangles) {
+		const V3 &a = m.vertices[size_t(t[0])], &b = m.vertices[size_t(t[1])], &c = m.vertices[size_t(t[2])];
+		V3 n = (b - a).cross(c - a);
+		V3 avg = m.normals[size_t(t[0])] + m.normals[size_t(t[1])] + m.normals[size_t(t[2])];
+		if (n.dot(avg) < 0)
+			std::swap(t[1], t[2]);
+	}
+	*ret_mesh = std::move(m);
+	return Status();
+}
+
+} // namespace facescan::sim

@@ -1,0 +1,265 @@
+// The simulated booth: rig + scene + pattern → capture set (what the 4 cameras would record).
+//
+// World frame (see docs/capture-format.md): millimetres, right-handed, head centred near the
+// origin, +y up, +z out of the face towards the front cameras, +x to the image right of a
+// camera in front of the face (the subject's left). Camera and projector poses follow the
+// capture set's convention: x_dev = R * x_world + T, device looks along its +z, image y down.
+//
+// Layers, each usable on its own:
+//   Rig     the booth (cameras, projectors, sensor, lights): load_rig() from a YAML file, or
+//           default_rig() (identical to tools/sim/rigs/default.yaml, checked by a test).
+//   Scene   what stands in the booth: the procedural head, its pose, albedo, noise level.
+//   Surface any triangle mesh with a colour (constant, per vertex or UV texture): render_views()
+//           renders arbitrary surfaces (a calibration board, a plane, a sphere) through the rig.
+//   Tracer  ray casting (Embree) against a set of surfaces, for tests that need exact geometry.
+// Libraries never log; the CLI (`facescan simulate`) prints the timings.
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "pattern/pattern.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace facescan::sim {
+
+// ---- the rig -------------------------------------------------------------------------------
+
+/// A camera of the booth: its calibration (exactly what calibration.yaml will say) and its optics.
+struct SimCamera {
+	std::string name;
+	CameraModel model;	      // K, dist (k1 k2 p1 p2 k3), R, T (world → camera), size
+	double focus_mm = 550;	      // distance along the optical axis that is sharp
+	double blur_px = 0.5;	      // Gaussian sigma of the lens at focus (pixels)
+	double defocus_px_per_100mm = 0.8; // extra sigma per 100 mm away from focus (pixels)
+	double exposure = 1.0;	      // multiplies the scene radiance before the sensor
+};
+
+/// A projector: a pinhole throwing the slide (no lens distortion), with defocus.
+struct SimProjector {
+	std::string name;
+	cv::Matx33d K = cv::Matx33d::eye();
+	cv::Matx33d R = cv::Matx33d::eye(); // world → projector
+	cv::Vec3d T = {0, 0, 0};
+	cv::Size size = {1024, 768};
+	/// Sensor value (linear, 1 = full well at exposure 1) that a white slide pixel (255)
+	/// produces on a white Lambertian surface (albedo 1) facing the projector at 500 mm.
+	double power = 1.0;
+	double focus_mm = 600;
+	double blur_px = 0.6;		    // slide pixels, at focus
+	double defocus_px_per_100mm = 1.5;  // slide pixels per 100 mm away from focus
+	double gamma = 2.2;		    // slide value → light: (v/255)^gamma
+	cv::Vec3d centre() const { return -(R.t() * T); }
+};
+
+/// The sensor and its image pipeline (shared by all cameras).
+struct SensorModel {
+	double full_well_e = 9000;	// electrons at linear value 1 (shot noise)
+	double read_noise_e = 6;	// electrons RMS
+	int adc_bits = 12;
+	double gamma = 2.2;		// output encoding: v = linear^(1/gamma)
+	/// Colour crosstalk of the filter array: raw RGB = crosstalk * scene RGB (rows R, G, B).
+	cv::Matx33d crosstalk = cv::Matx33d(0.86, 0.11, 0.03, 0.08, 0.84, 0.08, 0.03, 0.12, 0.85);
+	bool bayer = true;		// RGGB mosaic, then OpenCV's demosaic
+	double noise_scale = 1.0;	// multiplies shot and read noise (scenes raise it)
+};
+
+/// A soft light for the texture frames (projectors off): direction from the head, no shadows.
+struct DiffuseLight {
+	double azimuth_deg = 0, elevation_deg = 0;
+	double intensity = 0.5;		// sensor value on a white surface facing it
+};
+
+struct Lighting {
+	double ambient_pattern = 0.03;	// room light in the pattern frames (white surface value)
+	double ambient_texture = 0.12;	// uniform part of the diffuse light in the texture frames
+	std::vector<DiffuseLight> lights; // the texture frames' soft boxes
+};
+
+struct Rig {
+	std::vector<SimCamera> cameras;
+	std::vector<SimProjector> projectors;
+	SensorModel sensor;
+	Lighting lighting;
+	/// Rendering samples per pixel along each axis (1 = one ray at the pixel centre; 2 = 2x2).
+	int supersample = 1;
+};
+
+/// The rig of tools/sim/rigs/default.yaml, built in so that the CLI needs no file.
+Rig default_rig();
+
+/// Reads a rig file (OpenCV FileStorage YAML; keys in docs/simulator.md). Devices are placed by
+/// azimuth/elevation/distance around a target point; missing keys take default_rig()'s values.
+/// -ENOENT missing file, -EINVAL malformed (the message names the file and the key).
+Status load_rig(const std::string &path, Rig *ret_rig);
+
+/// Scales every camera's resolution by `scale` (0 < scale <= 4), K scaled to match
+/// (pixel centres preserved), blur in pixels scaled too. Projectors are not changed.
+Status scale_rig(double scale, Rig *rig);
+
+/// A camera or projector pose looking from `eye` at `target` with world +y up (rolled by
+/// roll_deg about the viewing axis). Returns R (world → device) and T.
+void look_at(const cv::Vec3d &eye, const cv::Vec3d &target, double roll_deg, cv::Matx33d *ret_R,
+	     cv::Vec3d *ret_T);
+/// Position at azimuth (about +y, 0 = +z, positive towards +x), elevation and distance from target.
+cv::Vec3d orbit_position(const cv::Vec3d &target, double azimuth_deg, double elevation_deg,
+			 double distance_mm);
+
+/// The calibration a capture set records for this rig.
+Calibration rig_calibration(const Rig &rig);
+
+// ---- geometry --------------------------------------------------------------------------------
+
+/// A triangle mesh. Optional per-vertex arrays are either empty or vertices.size() long.
+struct Mesh {
+	std::vector<cv::Vec3f> vertices;	// mm
+	std::vector<cv::Vec3i> triangles;	// counter-clockwise seen from outside
+	std::vector<cv::Vec3f> normals;		// optional smooth normals (else flat)
+	std::vector<cv::Vec3f> colors;		// optional linear albedo per vertex (RGB, 0..1)
+	std::vector<cv::Vec2f> uv;		// optional texture coordinates (0..1, v down)
+};
+
+/// What a surface looks like. Albedo precedence: texture (needs mesh.uv), mesh.colors, albedo.
+struct Surface {
+	Mesh mesh;
+	cv::Vec3f albedo = {0.5f, 0.5f, 0.5f}; // linear RGB
+	cv::Mat texture;	// optional 8-bit BGR image (sRGB-encoded), sampled bilinearly at uv
+	float specular = 0;	// Blinn-Phong sheen, fraction of the diffuse light
+	float shininess = 30;
+	int id = 0;		// reported in the truth's surface map (0 is reserved for "nothing")
+};
+
+/// Applies x' = R x + t to vertices (and R to normals).
+void transform_mesh(const cv::Matx33d &R, const cv::Vec3d &t, Mesh *mesh);
+/// A w × h rectangle in the z = 0 plane centred at the origin, facing +z, uv over the whole.
+Mesh make_plane(double width_mm, double height_mm, int subdivisions = 1);
+/// A UV sphere with smooth normals.
+Mesh make_sphere(const cv::Vec3d &centre, double radius_mm, int rings = 96, int segments = 192);
+/// Writes a binary little-endian PLY (vertices, normals when present, faces).
+Status write_ply(const std::string &path, const Mesh &mesh);
+
+// ---- the scene ---------------------------------------------------------------------------------
+
+struct HeadSpec {
+	double cell_mm = 1.4;	// grid step of the implicit surface (smaller = more triangles)
+	uint32_t seed = 1;	// skin blotches and small asymmetries
+};
+
+/// The procedural head in head coordinates (mm, face towards +z, +y up, centred near the
+/// origin): cranium, forehead, eye sockets with eyes, brows, nose, cheeks, lips, chin, jaw, ears,
+/// neck. Smooth normals and per-vertex skin albedo (hair, brows, lips, eyes darker/redder),
+/// scaled by `skin` (the albedo of plain cheek skin, linear RGB).
+Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh);
+
+struct Scene {
+	std::string name = "default";
+	double yaw_deg = 0, pitch_deg = 0;	// head rotation about +y, then +x
+	cv::Vec3d position = {0, 0, 0};		// head origin in world mm
+	cv::Vec3f skin = {0.62f, 0.43f, 0.34f}; // linear albedo of cheek skin
+	double noise_scale = 1.0;		// multiplies the rig sensor's noise
+	double backdrop_z = -350;		// dark backdrop plane z (mm); NAN = none
+	cv::Vec3f backdrop_albedo = {0.04f, 0.04f, 0.045f};
+	HeadSpec head;
+};
+
+/// Named scenes: "default", "turned" (head yawed 15°), "noisy" (4x sensor noise),
+/// "dark" (darker skin albedo). -EINVAL for an unknown name (the message lists the names).
+Status scene_by_name(const std::string &name, Scene *ret_scene);
+std::vector<std::string> scene_names();
+
+// ---- rendering ---------------------------------------------------------------------------------
+
+/// Ground truth of one rendered view, per camera pixel (at the pixel centre).
+struct ViewTruth {
+	cv::Mat depth;		// CV_32F, camera z in mm; 0 where the ray hit nothing
+	cv::Mat surface;	// CV_8U, Surface::id hit (0 = nothing)
+	/// CV_32FC2 slide coordinates (pixels) of the brightest projector lighting the point, and
+	/// CV_8S its index (-1 = no projector light: off-slide, back-facing or shadowed).
+	cv::Mat slide_xy, projector;
+};
+
+struct RenderOptions {
+	bool pattern = true;	  // render the pattern frames (projectors on)
+	bool texture = true;	  // render the texture frames (projectors off, diffuse light)
+	bool noise = true;	  // false: noise-free sensor (for geometric tests)
+	bool truth = false;	  // fill ViewTruth
+	std::vector<bool> projectors_on; // empty = all on
+};
+
+struct RenderResult {
+	std::vector<cv::Mat> frames;	// per camera, 8-bit BGR, pattern frames (if requested)
+	std::vector<cv::Mat> textures;	// per camera, 8-bit BGR, texture frames (if requested)
+	std::vector<ViewTruth> truth;	// per camera (if requested)
+};
+
+/// Renders every camera of the rig looking at `surfaces`, lit by the projectors throwing
+/// `slide` (8-bit BGR, resized to each projector if it differs) and by the rig's lights.
+/// Deterministic for a seed (any thread count). -EINVAL on an empty rig, an empty slide when
+/// pattern frames are requested, or a malformed mesh (index out of range, bad array sizes).
+Status render_views(const Rig &rig, const std::vector<Surface> &surfaces, const cv::Mat &slide,
+		    const RenderOptions &options, uint64_t seed, RenderResult *ret_result);
+
+/// Ground truth of a simulated scan.
+struct SimTruth {
+	Mesh head;			// the head in world mm (as written to ground_truth.ply)
+	std::vector<ViewTruth> views;	// per camera, when SimOptions::truth_maps
+	double render_seconds = 0;	// wall time of the render (for the CLI and the bench)
+};
+
+struct SimOptions {
+	bool truth_maps = false;	// fill SimTruth::views
+	bool texture_frames = true;
+};
+
+/// The booth: renders the scene's head (and backdrop) through the rig lit by `pattern`'s slide.
+/// Fills a complete capture set (calibration from the rig, frames, textures, meta with
+/// scan_id "sim-<scene>-<seed>" and the pattern id) and the truth. Either output may be null.
+Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint64_t seed,
+		CaptureSet *ret_set, SimTruth *ret_truth, const SimOptions &options = SimOptions());
+
+/// Writes the capture set plus ground_truth.ply (the head, world mm) into `dir`.
+Status write_simulated_set(const std::string &dir, const CaptureSet &set, const SimTruth &truth);
+
+// ---- ray casting -------------------------------------------------------------------------------
+
+struct Hit {
+	float t = 0;		// distance along the (normalised) ray, mm
+	int surface = -1;	// index into the surfaces vector, -1 = miss
+	int triangle = -1;
+	float u = 0, v = 0;	// barycentrics of vertices 1 and 2
+};
+
+/// Embree scene over a set of surfaces (the meshes are copied). Move-only; thread-safe queries.
+class Tracer {
+public:
+	Tracer();
+	~Tracer();
+	Tracer(Tracer &&) noexcept;
+	Tracer &operator=(Tracer &&) noexcept;
+	Tracer(const Tracer &) = delete;
+	Tracer &operator=(const Tracer &) = delete;
+
+	/// -EINVAL on a malformed mesh, -ENOMEM / -EIO when Embree fails.
+	Status build(const std::vector<Surface> &surfaces);
+	/// Closest hit along origin + t * normalize(dir) for t in (t_near, t_far), t in mm.
+	Hit intersect(const cv::Vec3d &origin, const cv::Vec3d &dir, double t_near = 0,
+		      double t_far = 1e30) const;
+	/// True when anything lies between origin and origin + t_far * normalize(dir).
+	bool occluded(const cv::Vec3d &origin, const cv::Vec3d &dir, double t_near,
+		      double t_far) const;
+
+private:
+	struct Impl;
+	std::unique_ptr<Impl> impl_;
+};
+
+/// The world-space ray through a (distorted) pixel of a camera: centre and unit direction.
+void pixel_ray(const CameraModel &camera, const cv::Point2d &pixel, cv::Vec3d *ret_origin,
+	       cv::Vec3d *ret_dir);
+
+} // namespace facescan::sim
