@@ -18,11 +18,13 @@ FW_NATIVE_BIN := $(OUT)/bin/facescan-fw-native
 $(FW_NATIVE_LIB): $(patsubst %,$(OUT)/obj/%.o,$(FW_CORE_SRC) $(FW_NATIVE_SRC))
 	@mkdir -p $(dir $@)
 	@rm -f $@
-	ar rcs $@ $^
+	@$(if $(V),,echo "  AR    $@")
+	$(Q)ar rcs $@ $^
 
 $(FW_NATIVE_BIN): $(OUT)/obj/firmware/boards/native/main.c.o $(FW_NATIVE_LIB) $(LIB)
 	@mkdir -p $(dir $@)
-	$(CC) $(LDFLAGS) -o $@ $< $(FW_NATIVE_LIB) $(LIB) -lutil
+	@$(if $(V),,echo "  LD    $@")
+	$(Q)$(CC) $(LDFLAGS) -o $@ $< $(FW_NATIVE_LIB) $(LIB)
 
 # Firmware tests link the core and the native board (before libfacescan.a, which has the
 # protocol they use).
@@ -30,7 +32,11 @@ FW_TESTS := $(filter $(OUT)/tests/firmware/%,$(TEST_BINS))
 $(FW_TESTS): $(FW_NATIVE_LIB)
 $(FW_TESTS): LDLIBS := $(FW_NATIVE_LIB) $(LIB) $(LDLIBS)
 
-EXTRA_ALL += $(FW_NATIVE_BIN)
+# `firmware` is what EXTRA_ALL names: the root Makefile expands EXTRA_ALL in the outer make
+# (release paths) and builds it in the inner one (any MODE), so the name must not hold $(OUT).
+.PHONY: firmware
+firmware: $(FW_NATIVE_BIN)
+EXTRA_ALL += firmware
 
 # ---- arm-none-eabi images ----------------------------------------------------------------
 ARM_CC   := arm-none-eabi-gcc
@@ -53,17 +59,19 @@ FW_$(1)_OBJ := $$(patsubst %,$(BUILD)/firmware/$(1)/obj/%.o,$$(FW_$(1)_SRC))
 
 $(BUILD)/firmware/$(1)/obj/%.c.o: %.c
 	@mkdir -p $$(dir $$@)
-	$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) -MMD -MP -c $$< -o $$@
+	@$$(if $$(V),,echo "  ARMCC $$<")
+	$$(Q)$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) -MMD -MP -c $$< -o $$@
 
 $(BUILD)/firmware/$(1)/facescan-fw.elf: $$(FW_$(1)_OBJ) firmware/boards/$(1)/link.ld
-	$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) $(FW_ARM_LDFLAGS) \
+	@$$(if $$(V),,echo "  ARMLD $$@")
+	$$(Q)$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) $(FW_ARM_LDFLAGS) \
 		-T firmware/boards/$(1)/link.ld -Wl,-Map=$$(basename $$@).map -o $$@ $$(FW_$(1)_OBJ)
-	$(ARM_OBJCOPY) -O binary $$@ $$(basename $$@).bin
+	$$(Q)$(ARM_OBJCOPY) -O binary $$@ $$(basename $$@).bin
 	@$(ARM_SIZE) $$@ | tee $$(dir $$@)size.txt | \
 		awk 'NR==2 { printf "firmware $(1): flash %d bytes, RAM %d bytes (incl. stack)\n", $$$$1+$$$$2, $$$$2+$$$$3 }'
 
 -include $$(patsubst %.o,%.d,$$(FW_$(1)_OBJ))
-EXTRA_ALL += $(BUILD)/firmware/$(1)/facescan-fw.elf
+firmware: $(BUILD)/firmware/$(1)/facescan-fw.elf
 endef
 $(foreach b,$(FW_ARM_BOARDS),$(eval $(call FW_ARM_BOARD_RULES,$(b))))
 endif
