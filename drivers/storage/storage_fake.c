@@ -148,8 +148,10 @@ static int fake_flush(void *ctx, unsigned *ret_delivered)
 		file_free(s);
 		n++;
 	}
-	memmove(f->spool.v, f->spool.v + i, (f->spool.n - i) * sizeof(*f->spool.v));
-	f->spool.n -= i;
+	if (i) {
+		memmove(f->spool.v, f->spool.v + i, (f->spool.n - i) * sizeof(*f->spool.v));
+		f->spool.n -= i;
+	}
 	*ret_delivered = n;
 	return r;
 }
