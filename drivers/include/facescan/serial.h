@@ -38,13 +38,13 @@ struct fscan_serial_config {
 struct fscan_serial_ops {
 	const char *name;
 	/* Opens the device in raw mode (8N1, no flow control, no echo, no line discipline).
-	 * -ENOENT/-ENODEV no device, -EACCES, -EBUSY, -EINVAL unsupported baud or not a tty. */
+	 * -ENOENT/-ENODEV no device, -EACCES, -EBUSY, -EINVAL unsupported baud, -ENOTTY not a tty. */
 	int (*open)(const struct fscan_serial_config *cfg, void **ret_ctx);
 	void (*close)(void *ctx);
 	/* Reads what is there (at least 1 byte): returns the count, -ETIMEDOUT when nothing came
 	 * within timeout_ms (0 = poll, <0 = forever), -ENOTCONN on hangup, -EINTR, -EIO. */
 	ssize_t (*read)(void *ctx, uint8_t *buf, size_t cap, int timeout_ms);
-	/* Writes all of buf (waiting for the tty to drain in between): returns len, -ETIMEDOUT,
+	/* Writes all of buf (polling for room in between): returns len, -ETIMEDOUT,
 	 * -ENOTCONN on hangup, -EIO. */
 	ssize_t (*write)(void *ctx, const uint8_t *buf, size_t len, int timeout_ms);
 	/* The pollable descriptor. */
