@@ -46,7 +46,7 @@ ARM_OBJCOPY := arm-none-eabi-objcopy
 FW_ARM_BOARDS := $(patsubst firmware/boards/%/link.ld,%,$(wildcard firmware/boards/*/link.ld))
 FW_ARM_CFLAGS := -std=c11 -Wall -Wextra -Werror -Wpedantic -Os -g -mthumb \
 	-ffunction-sections -fdata-sections -ffreestanding -Ifirmware
-FW_ARM_LDFLAGS := -nostartfiles --specs=nano.specs --specs=nosys.specs -Wl,--gc-sections
+FW_ARM_LDFLAGS := -Lfirmware/boards -nostartfiles --specs=nano.specs --specs=nosys.specs -Wl,--gc-sections
 FW_CPU_lm3s6965evb := -mcpu=cortex-m3
 FW_CPU_stm32f103   := -mcpu=cortex-m3
 FW_ARM_COMMON := $(FW_CORE_SRC) firmware/protocol/protocol.c
@@ -62,7 +62,7 @@ $(BUILD)/firmware/$(1)/obj/%.c.o: %.c
 	@$$(if $$(V),,echo "  ARMCC $$<")
 	$$(Q)$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) -MMD -MP -c $$< -o $$@
 
-$(BUILD)/firmware/$(1)/facescan-fw.elf: $$(FW_$(1)_OBJ) firmware/boards/$(1)/link.ld
+$(BUILD)/firmware/$(1)/facescan-fw.elf: $$(FW_$(1)_OBJ) firmware/boards/$(1)/link.ld firmware/boards/cortex-m.ld
 	@$$(if $$(V),,echo "  ARMLD $$@")
 	$$(Q)$(ARM_CC) $(FW_ARM_CFLAGS) $(FW_CPU_$(1)) $(FW_ARM_LDFLAGS) \
 		-T firmware/boards/$(1)/link.ld -Wl,-Map=$$(basename $$@).map -o $$@ $$(FW_$(1)_OBJ)
