@@ -270,7 +270,8 @@ int fscan_camera_collect(struct fscan_camera *cam, int timeout_ms, struct fscan_
 		memset(&f, 0, sizeof(f));
 		int n = cam->ops->next_frame(cam->ctx, wait, &f);
 		if (n == -ETIMEDOUT) {
-			if (timeout_ms >= 0 && mono_ms() - start >= (uint64_t)timeout_ms) {
+			/* With no deadline, a backend that times out anyway knows nothing will come. */
+			if (timeout_ms < 0 || mono_ms() - start >= (uint64_t)timeout_ms) {
 				for (uint32_t c = 0; c < cam->count; c++)
 					if (!have[c])
 						cam->status[c] = -ETIMEDOUT;
