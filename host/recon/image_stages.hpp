@@ -41,8 +41,8 @@ cv::Vec3d hsi_of_bgr(const cv::Vec3d &bgr);
 struct SquareParams {
 	/// Side of the first-pass local-mean window in pixels; 0 = derive from the image size.
 	int first_window_px = 0;
-	/// Local-mean window for the final pass, in estimated pitches.
-	double window_pitches = 2.0;
+	/// Local-mean window for the final pass, in median square sides (0 = single pass).
+	double window_sides = 3.0;
 	/// Square accepted when its area is within [min, max] times the median square area.
 	double min_area_ratio = 0.2, max_area_ratio = 3.0;
 	double min_area_px = 25;	// absolute floor (noise specks)

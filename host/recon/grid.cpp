@@ -1,0 +1,104 @@
+// Stage 2: grid topology. Each square's own four corners give a homography from the image to the
+// slide around it (units of one pitch); a neighbour's centre must land one pitch up, left, right
+// or down there. That holds on a curved, foreshortened face as long as the surface is smooth over
+// one pitch, which a fixed image-space search radius or direction would not.
+#include "recon/image_stages.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <unordered_map>
+
+namespace facescan::recon {
+
+namespace {
+
+// Unit offsets (dx, dy) on the slide of the up, left, right, down neighbour.
+constexpr int kDx[4] = {0, -1, 1, 0};
+constexpr int kDy[4] = {-1, 0, 0, 1};
+
+int opposite(int dir)
+{
+	return 3 - dir;
+}
+
+} // namespace
+
+void link_grid(double gap_fraction, const GridParams &params, std::vector<Square> *squares)
+{
+	std::vector<Square> &sq = *squares;
+	const double s = 1.0 - gap_fraction;
+	double cell = 0;
+	for (const Square &q : sq)
+		cell = std::max(cell, std::sqrt(q.area) / s);
+	for (Square &q : sq)
+		q.neighbours = {{-1, -1, -1, -1}};
+	if (sq.empty() || cell <= 0)
+		return;
+	// Spatial hash of centroids, cells of one (largest) pitch.
+	auto key = [cell](const cv::Point2d &p) {
+		return (int64_t(std::floor(p.y / cell)) << 32) ^ int64_t(uint32_t(int(std::floor(p.x / cell))));
+	};
+	std::unordered_map<int64_t, std::vector<int>> hash;
+	for (size_t i = 0; i < sq.size(); i++)
+		hash[key(sq[i].centroid)].push_back(int(i));
+
+	std::vector<std::array<int, 4>> found(sq.size(), {{-1, -1, -1, -1}});
+	const cv::Point2f dst[4] = {{0, 0}, {float(s), 0}, {float(s), float(s)}, {0, float(s)}};
+	for (size_t i = 0; i < sq.size(); i++) {
+		if (!sq[i].has_corners)
+			continue;
+		cv::Point2f src[4];
+		for (int k = 0; k < 4; k++)
+			src[k] = cv::Point2f(sq[i].corners[size_t(k)]);
+		cv::Matx33d H = cv::getPerspectiveTransform(src, dst);
+		std::array<double, 4> best{{1e9, 1e9, 1e9, 1e9}};
+		int cx = int(std::floor(sq[i].centroid.x / cell)), cy = int(std::floor(sq[i].centroid.y / cell));
+		for (int gy = cy - 2; gy <= cy + 2; gy++)
+			for (int gx = cx - 2; gx <= cx + 2; gx++) {
+				auto it = hash.find((int64_t(gy) << 32) ^ int64_t(uint32_t(gx)));
+				if (it == hash.end())
+					continue;
+				for (int j : it->second) {
+					if (size_t(j) == i)
+						continue;
+					const cv::Point2d &p = sq[size_t(j)].centroid;
+					cv::Vec3d h = H * cv::Vec3d(p.x, p.y, 1);
+					if (h[2] <= 0)
+						continue;
+					double u = h[0] / h[2] - s / 2, v = h[1] / h[2] - s / 2;
+					for (int d = 0; d < 4; d++) {
+						double e = std::hypot(u - kDx[d], v - kDy[d]);
+						if (e < params.tolerance && e < best[size_t(d)]) {
+							best[size_t(d)] = e;
+							found[i][size_t(d)] = j;
+						}
+					}
+				}
+			}
+	}
+	// Keep links both ends agree on (or that the far end, without corners, cannot contradict).
+	for (size_t i = 0; i < sq.size(); i++)
+		for (int d = 0; d < 4; d++) {
+			int j = found[i][size_t(d)];
+			if (j < 0)
+				continue;
+			if (sq[size_t(j)].has_corners && found[size_t(j)][size_t(opposite(d))] != int(i))
+				continue;
+			sq[i].neighbours[size_t(d)] = j;
+			if (!sq[size_t(j)].has_corners)
+				sq[size_t(j)].neighbours[size_t(opposite(d))] = int(i);
+		}
+	// A corner-less square linked from two sides in the same direction is ambiguous: unlink.
+	for (size_t i = 0; i < sq.size(); i++) {
+		if (sq[i].has_corners)
+			continue;
+		for (int d = 0; d < 4; d++) {
+			int j = sq[i].neighbours[size_t(d)];
+			if (j >= 0 && sq[size_t(j)].neighbours[size_t(opposite(d))] != int(i))
+				sq[i].neighbours[size_t(d)] = -1;
+		}
+	}
+}
+
+} // namespace facescan::recon

@@ -1,0 +1,64 @@
+// Stage 1a: the paper's HSI colour model (Gonzalez & Woods), all planes on 0..255.
+#include "recon/image_stages.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::recon {
+
+cv::Vec3d hsi_of_bgr(const cv::Vec3d &bgr)
+{
+	double b = bgr[0], g = bgr[1], r = bgr[2];
+	double sum = b + g + r;
+	double i = sum / 3;
+	if (sum <= 0)
+		return {0, 0, 0};
+	double s = 1 - 3 * std::min({b, g, r}) / sum;
+	double num = 0.5 * ((r - g) + (r - b));
+	double den = std::sqrt((r - g) * (r - g) + (r - b) * (g - b));
+	double h = 0;
+	if (den > 1e-9 && s > 1e-9) {
+		double theta = std::acos(std::clamp(num / den, -1.0, 1.0)) * 180.0 / M_PI;
+		h = b > g ? 360.0 - theta : theta;
+	}
+	return {h * 255.0 / 360.0, s * 255.0, i};
+}
+
+Status bgr_to_hsi(const cv::Mat &bgr, HsiImage *ret_hsi)
+{
+	if (bgr.empty() || bgr.type() != CV_8UC3)
+		return Status::error(EINVAL, "HSI conversion needs an 8-bit 3-channel image");
+	HsiImage out;
+	out.h.create(bgr.size(), CV_32F);
+	out.s.create(bgr.size(), CV_32F);
+	out.i.create(bgr.size(), CV_32F);
+	for (int y = 0; y < bgr.rows; y++) {
+		const cv::Vec3b *p = bgr.ptr<cv::Vec3b>(y);
+		float *h = out.h.ptr<float>(y), *s = out.s.ptr<float>(y), *i = out.i.ptr<float>(y);
+		for (int x = 0; x < bgr.cols; x++) {
+			cv::Vec3d v = hsi_of_bgr(cv::Vec3d(p[x][0], p[x][1], p[x][2]));
+			h[x] = float(v[0]);
+			s[x] = float(v[1]);
+			i[x] = float(v[2]);
+		}
+	}
+	*ret_hsi = std::move(out);
+	return {};
+}
+
+Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity)
+{
+	if (bgr.empty() || bgr.type() != CV_8UC3)
+		return Status::error(EINVAL, "intensity needs an 8-bit 3-channel image");
+	cv::Mat out(bgr.size(), CV_32F);
+	for (int y = 0; y < bgr.rows; y++) {
+		const uchar *p = bgr.ptr<uchar>(y);
+		float *o = out.ptr<float>(y);
+		for (int x = 0; x < bgr.cols; x++, p += 3)
+			o[x] = float(int(p[0]) + int(p[1]) + int(p[2])) * (1.0f / 3.0f);
+	}
+	*ret_intensity = std::move(out);
+	return {};
+}
+
+} // namespace facescan::recon

@@ -1,0 +1,155 @@
+// Stage 4: correspondence between two cameras by cell id, checked against the epipolar
+// constraint and a plausible depth. The three projectors throw the same slide, so a cell id can
+// appear up to three times in each camera; a square is matched only when exactly one candidate of
+// the other camera is geometrically consistent, and one square never takes two partners.
+#include "recon/image_stages.hpp"
+
+#include <opencv2/calib3d.hpp>
+
+#include <cmath>
+#include <unordered_map>
+
+namespace facescan::recon {
+
+namespace {
+
+// Normalised (undistorted) image coordinates of every feature of every square.
+std::vector<cv::Point2d> normalised(const CameraDetections &d, const CameraModel &cam)
+{
+	std::vector<cv::Point2d> px;
+	px.reserve(d.squares.size() * kFeatureCount);
+	for (const Square &s : d.squares) {
+		px.push_back(s.centroid);
+		for (int k = 0; k < 4; k++)
+			px.push_back(s.has_corners ? s.corners[size_t(k)] : s.centroid);
+	}
+	std::vector<cv::Point2d> out;
+	if (!px.empty())
+		cv::undistortPoints(px, out, cv::Mat(cam.K), cv::Mat(cam.dist));
+	return out;
+}
+
+struct Geometry {
+	cv::Matx33d E, R; // x_b = R x_a + t
+	cv::Vec3d t;
+	double fa, fb;
+
+	// Symmetric distance to the epipolar lines, pixels.
+	double epipolar(const cv::Point2d &na, const cv::Point2d &nb) const
+	{
+		cv::Vec3d xa(na.x, na.y, 1), xb(nb.x, nb.y, 1);
+		cv::Vec3d lb = E * xa, la = E.t() * xb;
+		double e = xb.dot(lb);
+		double db = std::abs(e) / std::max(1e-12, std::hypot(lb[0], lb[1]));
+		double da = std::abs(e) / std::max(1e-12, std::hypot(la[0], la[1]));
+		return 0.5 * (da * fa + db * fb);
+	}
+	// Depth in camera a of the midpoint of the two rays; false when behind either camera.
+	bool depth(const cv::Point2d &na, const cv::Point2d &nb, double *ret) const
+	{
+		cv::Vec3d da(na.x, na.y, 1), ob = -(R.t() * t), db = R.t() * cv::Vec3d(nb.x, nb.y, 1);
+		double a = da.dot(da), b = da.dot(db), c = db.dot(db);
+		cv::Vec3d w = -ob;
+		double d = da.dot(w), e = db.dot(w);
+		double den = a * c - b * b;
+		if (std::abs(den) < 1e-12)
+			return false;
+		double s = (b * e - c * d) / den, u = (a * e - b * d) / den;
+		if (s <= 0 || u <= 0)
+			return false;
+		cv::Vec3d p = 0.5 * (s * da + (ob + u * db));
+		*ret = p[2];
+		return true;
+	}
+};
+
+} // namespace
+
+Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
+		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
+		  PairMatches *ret)
+{
+	if (ca.K(0, 0) <= 0 || cb.K(0, 0) <= 0 || ca.K(1, 1) <= 0 || cb.K(1, 1) <= 0)
+		return Status::error(EINVAL, "match_pair: camera intrinsics have no focal length");
+	const int cells = pattern.matrix.rows() * pattern.matrix.cols();
+	Geometry g;
+	g.R = cb.R * ca.R.t();
+	g.t = cb.T - g.R * ca.T;
+	if (cv::norm(g.t) < 1e-9)
+		return Status::error(EINVAL, "match_pair: the two cameras share their centre");
+	cv::Matx33d tx(0, -g.t[2], g.t[1], g.t[2], 0, -g.t[0], -g.t[1], g.t[0], 0);
+	g.E = tx * g.R;
+	g.fa = 0.5 * (ca.K(0, 0) + ca.K(1, 1));
+	g.fb = 0.5 * (cb.K(0, 0) + cb.K(1, 1));
+	std::vector<cv::Point2d> na = normalised(a, ca), nb = normalised(b, cb);
+
+	std::unordered_map<int, std::vector<int>> by_cell;
+	for (size_t j = 0; j < b.squares.size(); j++)
+		if (b.squares[j].cell >= 0 && b.squares[j].cell < cells)
+			by_cell[b.squares[j].cell].push_back(int(j));
+
+	PairMatches out;
+	out.cam_a = a.camera;
+	out.cam_b = b.camera;
+	std::vector<int> partner(a.squares.size(), -1);
+	std::vector<int> taken(b.squares.size(), 0);
+	for (size_t i = 0; i < a.squares.size(); i++) {
+		int cell = a.squares[i].cell;
+		if (cell < 0)
+			continue;
+		auto it = by_cell.find(cell);
+		if (it == by_cell.end())
+			continue;
+		int valid = 0, pick = -1;
+		for (int j : it->second) {
+			const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
+			double z = 0;
+			if (g.epipolar(pa, pb) > params.max_epipolar_px || !g.depth(pa, pb, &z) ||
+			    z < params.min_depth_mm || z > params.max_depth_mm)
+				continue;
+			valid++;
+			pick = j;
+		}
+		if (valid == 0) {
+			out.rejected_epipolar++;
+		} else if (valid > 1) {
+			out.rejected_ambiguous++;
+		} else {
+			partner[i] = pick;
+			taken[size_t(pick)]++;
+		}
+	}
+	for (size_t i = 0; i < a.squares.size(); i++) {
+		int j = partner[i];
+		if (j < 0)
+			continue;
+		if (taken[size_t(j)] > 1) { // two copies in a claim one square in b
+			out.rejected_ambiguous++;
+			continue;
+		}
+		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
+		PointMatch pm;
+		pm.square_a = int(i);
+		pm.square_b = j;
+		pm.cell = sa.cell;
+		pm.feature = kCentroid;
+		pm.a = sa.centroid;
+		pm.b = sb.centroid;
+		out.matches.push_back(pm);
+		if (!params.corners || !sa.has_corners || !sb.has_corners)
+			continue;
+		for (int k = 0; k < 4; k++) {
+			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
+			if (g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px)
+				continue;
+			pm.feature = kTopLeft + k;
+			pm.a = sa.corners[size_t(k)];
+			pm.b = sb.corners[size_t(k)];
+			out.matches.push_back(pm);
+		}
+	}
+	*ret = std::move(out);
+	return {};
+}
+
+} // namespace facescan::recon

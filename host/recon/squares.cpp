@@ -1,0 +1,206 @@
+// Stage 1b: the pattern's squares on the intensity plane.
+//
+// A local-mean threshold separates lit squares from the dark gaps whatever the shading; each blob
+// is then re-thresholded at the midpoint of its own inside and gap levels, which is where a
+// symmetric blur leaves a step edge, so the mask's boundary is unbiased for the corner stage.
+#include "recon/image_stages.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::recon {
+
+namespace {
+
+double median_of(std::vector<float> &v)
+{
+	if (v.empty())
+		return 0;
+	auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
+	std::nth_element(v.begin(), mid, v.end());
+	return *mid;
+}
+
+// Lit pixels: brighter than the local mean by a small margin (flat dark areas stay dark).
+cv::Mat local_mean_mask(const cv::Mat &intensity, int window)
+{
+	window = std::max(3, window | 1);
+	cv::Mat mean;
+	cv::boxFilter(intensity, mean, CV_32F, cv::Size(window, window), cv::Point(-1, -1), true,
+		      cv::BORDER_REPLICATE);
+	cv::Mat mask(intensity.size(), CV_8U);
+	for (int y = 0; y < intensity.rows; y++) {
+		const float *i = intensity.ptr<float>(y), *m = mean.ptr<float>(y);
+		uchar *o = mask.ptr<uchar>(y);
+		for (int x = 0; x < intensity.cols; x++)
+			o[x] = i[x] > m[x] * 1.05f + 2.0f ? 255 : 0;
+	}
+	return mask;
+}
+
+struct Component {
+	cv::Rect box;
+	int area;
+	int label;
+};
+
+std::vector<Component> components(const cv::Mat &mask, double min_area, cv::Mat *labels)
+{
+	cv::Mat stats, centroids;
+	int n = cv::connectedComponentsWithStats(mask, *labels, stats, centroids, 4, CV_32S);
+	std::vector<Component> out;
+	for (int l = 1; l < n; l++) {
+		int area = stats.at<int>(l, cv::CC_STAT_AREA);
+		if (area < min_area)
+			continue;
+		cv::Rect box(stats.at<int>(l, cv::CC_STAT_LEFT), stats.at<int>(l, cv::CC_STAT_TOP),
+			     stats.at<int>(l, cv::CC_STAT_WIDTH), stats.at<int>(l, cv::CC_STAT_HEIGHT));
+		// Compact blobs only: a square fills at least half of its bounding box whatever its
+		// rotation, a long streak (an edge of the face, a highlight) does not.
+		if (area < 0.4 * box.area())
+			continue;
+		out.push_back({box, area, l});
+	}
+	return out;
+}
+
+double median_area(const std::vector<Component> &comps)
+{
+	std::vector<float> a;
+	for (const Component &c : comps)
+		a.push_back(float(c.area));
+	return median_of(a);
+}
+
+} // namespace
+
+Status find_squares(const cv::Mat &intensity, const SquareParams &params,
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs)
+{
+	if (intensity.empty() || intensity.type() != CV_32F)
+		return Status::error(EINVAL, "find_squares needs a CV_32F intensity image");
+	int window = params.first_window_px > 0 ? params.first_window_px
+						: std::max(15, std::min(intensity.cols, intensity.rows) / 20);
+	cv::Mat labels;
+	cv::Mat mask = local_mean_mask(intensity, window);
+	std::vector<Component> comps = components(mask, params.min_area_px, &labels);
+	if (comps.empty()) {
+		ret_squares->clear();
+		ret_blobs->clear();
+		return {};
+	}
+	double side = std::sqrt(median_area(comps));
+	if (params.window_sides > 0) {
+		int w2 = int(std::lround(params.window_sides * side));
+		if (w2 > 0 && (w2 > window * 1.3 || w2 < window / 1.3)) {
+			mask = local_mean_mask(intensity, w2);
+			comps = components(mask, params.min_area_px, &labels);
+			if (!comps.empty())
+				side = std::sqrt(median_area(comps));
+		}
+	}
+
+	std::vector<Square> squares;
+	std::vector<SquareBlob> blobs;
+	std::vector<float> inside, outside;
+	int margin = std::max(2, int(std::lround(0.2 * side)));
+	cv::Rect frame(0, 0, intensity.cols, intensity.rows);
+	for (const Component &c : comps) {
+		if (c.area > params.max_area_ratio * side * side * 1.2)
+			continue;
+		cv::Rect box(c.box.x - margin, c.box.y - margin, c.box.width + 2 * margin,
+			     c.box.height + 2 * margin);
+		box &= frame;
+		cv::Mat lab = labels(box), img = intensity(box);
+		inside.clear();
+		outside.clear();
+		cv::Mat own = (lab == c.label);
+		cv::Mat grown;
+		cv::dilate(own, grown, cv::Mat(), cv::Point(-1, -1), 1);
+		for (int y = 0; y < box.height; y++) {
+			const int *l = lab.ptr<int>(y);
+			const float *v = img.ptr<float>(y);
+			const uchar *g = grown.ptr<uchar>(y);
+			for (int x = 0; x < box.width; x++) {
+				if (l[x] == c.label)
+					inside.push_back(v[x]);
+				else if (!g[x] && l[x] == 0)
+					outside.push_back(v[x]);
+			}
+		}
+		if (outside.size() < 8)
+			continue;
+		double in = median_of(inside), out = median_of(outside);
+		if (in <= 0 || (in - out) / in < params.min_contrast)
+			continue;
+		float mid = float(0.5 * (in + out));
+		// Re-threshold at the square's own midpoint, within reach of the first-pass blob only.
+		cv::Mat reach;
+		cv::dilate(own, reach, cv::Mat(), cv::Point(-1, -1), std::max(1, margin - 1));
+		cv::Mat refined = (img > mid) & reach;
+		cv::Mat rlab, rstats, rcent;
+		int n = cv::connectedComponentsWithStats(refined, rlab, rstats, rcent, 4, CV_32S);
+		int best = 0, best_area = 0;
+		for (int l = 1; l < n; l++)
+			if (rstats.at<int>(l, cv::CC_STAT_AREA) > best_area) {
+				best_area = rstats.at<int>(l, cv::CC_STAT_AREA);
+				best = l;
+			}
+		if (!best || best_area < params.min_area_px)
+			continue;
+		cv::Rect rb(rstats.at<int>(best, cv::CC_STAT_LEFT), rstats.at<int>(best, cv::CC_STAT_TOP),
+			    rstats.at<int>(best, cv::CC_STAT_WIDTH), rstats.at<int>(best, cv::CC_STAT_HEIGHT));
+		// Touching the search box means it merged with something: not a square.
+		if ((rb.x == 0 && box.x > 0) || (rb.y == 0 && box.y > 0) ||
+		    (rb.x + rb.width == box.width && box.x + box.width < frame.width) ||
+		    (rb.y + rb.height == box.height && box.y + box.height < frame.height))
+			continue;
+		cv::Mat m = (rlab(rb) == best);
+		std::vector<std::vector<cv::Point>> contours;
+		cv::findContours(m, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+		if (contours.empty())
+			continue;
+		size_t ci = 0;
+		for (size_t k = 1; k < contours.size(); k++)
+			if (contours[k].size() > contours[ci].size())
+				ci = k;
+		std::vector<cv::Point> hull;
+		cv::convexHull(contours[ci], hull);
+		double hull_area = cv::contourArea(hull);
+		// Pixel areas exceed polygon areas by about half a perimeter.
+		double poly_area = hull_area + 0.5 * cv::arcLength(hull, true);
+		if (poly_area <= 0 || best_area / poly_area < params.min_solidity)
+			continue;
+		cv::Moments mo = cv::moments(m, true);
+		SquareBlob blob;
+		blob.box = cv::Rect(box.x + rb.x, box.y + rb.y, rb.width, rb.height);
+		blob.mask = m;
+		blob.inside = in;
+		blob.outside = out;
+		Square sq;
+		sq.centroid = {blob.box.x + mo.m10 / mo.m00, blob.box.y + mo.m01 / mo.m00};
+		sq.area = best_area;
+		squares.push_back(sq);
+		blobs.push_back(std::move(blob));
+	}
+	// Area filter against the median of what survived.
+	std::vector<float> areas;
+	for (const Square &s : squares)
+		areas.push_back(float(s.area));
+	double med = median_of(areas);
+	std::vector<Square> keep_sq;
+	std::vector<SquareBlob> keep_blob;
+	for (size_t k = 0; k < squares.size(); k++)
+		if (squares[k].area >= params.min_area_ratio * med &&
+		    squares[k].area <= params.max_area_ratio * med) {
+			keep_sq.push_back(squares[k]);
+			keep_blob.push_back(std::move(blobs[k]));
+		}
+	*ret_squares = std::move(keep_sq);
+	*ret_blobs = std::move(keep_blob);
+	return {};
+}
+
+} // namespace facescan::recon
