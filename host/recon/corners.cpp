@@ -244,6 +244,69 @@ Status force_field_corners(const cv::Mat &mask, std::array<cv::Point2d, 4> *ret_
 	return {};
 }
 
+namespace {
+
+// Pixel-level sides from the mask's boundary: each boundary pixel whose intensity gradient points
+// along a side's normal (as the initial corners give it) belongs to that side. The gradient, not
+// the position, decides, so initial corners a few pixels off (the force field's tie averaging on a
+// slightly rotated square) still give the right sides.
+bool boundary_corners(const cv::Mat &intensity, const SquareBlob &blob, Corners *c)
+{
+	const cv::Mat &m = blob.mask;
+	cv::Point2d centre = 0.25 * ((*c)[0] + (*c)[1] + (*c)[2] + (*c)[3]);
+	std::array<cv::Point2d, 4> normal;
+	for (size_t k = 0; k < 4; k++) {
+		cv::Point2d d = (*c)[(k + 1) % 4] - (*c)[k];
+		cv::Point2d n(d.y, -d.x);
+		double l = std::hypot(n.x, n.y);
+		if (l < 1e-9)
+			return false;
+		n *= 1.0 / l;
+		if ((0.5 * ((*c)[k] + (*c)[(k + 1) % 4]) - centre).dot(n) < 0)
+			n = -n;
+		normal[k] = n;
+	}
+	std::array<std::vector<cv::Point2d>, 4> pts;
+	const double cos_limit = std::cos(35.0 * M_PI / 180.0);
+	for (int y = 0; y < m.rows; y++)
+		for (int x = 0; x < m.cols; x++) {
+			if (!m.at<uchar>(y, x))
+				continue;
+			bool edge = y == 0 || x == 0 || y == m.rows - 1 || x == m.cols - 1 ||
+				    !m.at<uchar>(y - 1, x) || !m.at<uchar>(y + 1, x) || !m.at<uchar>(y, x - 1) ||
+				    !m.at<uchar>(y, x + 1);
+			if (!edge)
+				continue;
+			int ix = blob.box.x + x, iy = blob.box.y + y;
+			if (ix < 1 || iy < 1 || ix >= intensity.cols - 1 || iy >= intensity.rows - 1)
+				continue;
+			// Outward normal = minus the gradient (bright inside).
+			double gx = -(intensity.at<float>(iy, ix + 1) - intensity.at<float>(iy, ix - 1));
+			double gy = -(intensity.at<float>(iy + 1, ix) - intensity.at<float>(iy - 1, ix));
+			double g = std::hypot(gx, gy);
+			if (g < 1e-6)
+				continue;
+			for (size_t k = 0; k < 4; k++)
+				if ((gx * normal[k].x + gy * normal[k].y) / g > cos_limit) {
+					// The outline lies half a pixel outside the boundary pixel's centre.
+					pts[k].push_back(cv::Point2d(ix, iy) + 0.5 * normal[k]);
+					break;
+				}
+		}
+	std::array<Line, 4> lines;
+	for (size_t k = 0; k < 4; k++)
+		if (!fit_line(pts[k], &lines[k]))
+			return false;
+	Corners next;
+	for (size_t k = 0; k < 4; k++)
+		if (!intersect(lines[(k + 3) % 4], lines[k], &next[k]))
+			return false;
+	*c = next;
+	return true;
+}
+
+} // namespace
+
 Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const CornerParams &params,
 		      std::array<cv::Point2d, 4> *corners)
 {
@@ -251,6 +314,9 @@ Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const Co
 		return Status::error(EINVAL, "refine_corners needs a CV_32F intensity image");
 	Corners c = *corners;
 	double side = std::sqrt(std::max(1.0, double(cv::countNonZero(blob.mask))));
+	if (!boundary_corners(intensity, blob, &c))
+		return Status::error(ERANGE, "the square's boundary has no four sides");
+	const Corners pixel_level = c;
 	double min_step = 0.3 * std::max(1.0, blob.inside - blob.outside);
 	std::vector<cv::Point2d> pts;
 	for (int iter = 0; iter < 2; iter++) {
@@ -270,9 +336,8 @@ Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const Co
 				return Status::error(ERANGE, "adjacent sides are nearly parallel");
 		c = next;
 	}
-	double limit = std::max(params.max_shift_px, 0.25 * side);
 	for (size_t k = 0; k < 4; k++)
-		if (cv::norm(c[k] - (*corners)[k]) > limit)
+		if (cv::norm(c[k] - pixel_level[k]) > params.max_shift_px)
 			return Status::error(ERANGE, "refined corner moved too far");
 	if (!convex_quad(c))
 		return Status::error(ERANGE, "refined corners are not a convex quadrilateral");

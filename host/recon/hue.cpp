@@ -157,13 +157,13 @@ Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs
 		hue[i] = ref;
 	}
 	// k-means on the hue circle, seeded at the slide's hues.
-	std::vector<double> centre(size_t(letters));
+	std::vector<double> centre(static_cast<size_t>(letters));
 	for (int l = 0; l < letters; l++)
 		centre[size_t(l)] = letter_hue(l, letters) * 360.0 / 255.0;
 	std::vector<int> assign(blobs.size(), -1);
 	for (int it = 0; it < params.iterations; it++) {
-		std::vector<double> cx(size_t(letters), 0), cy(size_t(letters), 0);
-		std::vector<int> cn(size_t(letters), 0);
+		std::vector<double> cx(static_cast<size_t>(letters), 0.0), cy(static_cast<size_t>(letters), 0.0);
+		std::vector<int> cn(static_cast<size_t>(letters), 0);
 		for (size_t i = 0; i < hue.size(); i++) {
 			if (hue[i] < 0)
 				continue;

@@ -74,8 +74,8 @@ struct CornerParams {
 	int samples_per_side = 12;
 	/// Half length of the intensity profile across an edge, in pixels (clamped to the gap).
 	double profile_half_px = 4.0;
-	/// A refined corner further than this from its force-field estimate is rejected.
-	double max_shift_px = 3.0;
+	/// A refined corner further than this from its pixel-level estimate is rejected.
+	double max_shift_px = 2.0;
 	/// Line-fit RMS above which the square's corners are rejected, pixels.
 	double max_fit_rms_px = 0.8;
 };
@@ -87,7 +87,10 @@ struct CornerParams {
 /// mask pixel coordinates, image-sense order TL, TR, BR, BL. -EINVAL for an empty mask.
 Status force_field_corners(const cv::Mat &mask, std::array<cv::Point2d, 4> *ret_corners);
 
-/// Sub-pixel refinement: each side's edge is located at the midpoint level between the square's
+/// Sub-pixel refinement. The initial corners split the mask's boundary into four sides (by each
+/// boundary pixel's gradient direction), whose pixel-level lines give corners to within a fraction
+/// of a pixel even when the force field's tie averaging left them a few pixels off. Then each
+/// side's edge is located at the midpoint level between the square's
 /// inside and gap intensity along profiles across it, a line is fitted per side and adjacent
 /// lines are intersected. `corners` (image pixels, TL TR BR BL) are the initial estimate.
 /// -ERANGE when the fit is poor or moves a corner more than max_shift_px (corners untouched).
