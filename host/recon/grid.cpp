@@ -36,8 +36,9 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 	if (sq.empty() || cell <= 0)
 		return;
 	// Spatial hash of centroids, cells of one (largest) pitch.
-	auto key = [cell](const cv::Point2d &p) {
-		return (int64_t(std::floor(p.y / cell)) << 32) ^ int64_t(uint32_t(int(std::floor(p.x / cell))));
+	auto key_of = [](int gx, int gy) { return int64_t(uint64_t(uint32_t(gy)) << 32 | uint32_t(gx)); };
+	auto key = [cell, key_of](const cv::Point2d &p) {
+		return key_of(int(std::floor(p.x / cell)), int(std::floor(p.y / cell)));
 	};
 	std::unordered_map<int64_t, std::vector<int>> hash;
 	for (size_t i = 0; i < sq.size(); i++)
@@ -56,7 +57,7 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 		int cx = int(std::floor(sq[i].centroid.x / cell)), cy = int(std::floor(sq[i].centroid.y / cell));
 		for (int gy = cy - 2; gy <= cy + 2; gy++)
 			for (int gx = cx - 2; gx <= cx + 2; gx++) {
-				auto it = hash.find((int64_t(gy) << 32) ^ int64_t(uint32_t(gx)));
+				auto it = hash.find(key_of(gx, gy));
 				if (it == hash.end())
 					continue;
 				for (int j : it->second) {
