@@ -102,20 +102,21 @@ Candidate decode_word(const std::vector<Square> &sq, size_t i, int letters,
 	return out;
 }
 
-} // namespace
+struct Decoded {
+	std::vector<int> cell;
+	std::vector<char> corrected, touched;
+	int decoded = 0;
+};
 
-void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDetections *dets)
+// Decodes squares whose neighbours are in the slide's sense.
+Decoded decode_core(const std::vector<Square> &sq, const CodeMatrix &m, const std::vector<int> &table,
+		    const DecodeParams &params)
 {
-	std::vector<Square> &sq = dets->squares;
-	const CodeMatrix &m = pattern.matrix;
 	const int rows = m.rows(), cols = m.cols(), letters = m.letters();
-	const std::vector<int> table = m.word_table();
 	const size_t n = sq.size();
 	std::vector<Candidate> cand(n);
 	std::vector<char> touched(n, 0); // had some evidence of a cell, accepted or not
 	for (size_t i = 0; i < n; i++) {
-		sq[i].cell = -1;
-		sq[i].corrected = false;
 		if (letters > 0 && !table.empty())
 			cand[i] = decode_word(sq, i, letters, table, params.correct);
 		touched[i] = cand[i].cell >= 0 || cand[i].error;
@@ -199,16 +200,94 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 		if (conflict > support)
 			final_cell[i] = -1;
 	}
+	Decoded out;
+	out.cell = final_cell;
+	out.corrected = corrected;
+	out.touched = touched;
+	for (size_t i = 0; i < n; i++)
+		out.decoded += final_cell[i] >= 0;
+	return out;
+}
+
+} // namespace
+
+void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDetections *dets)
+{
+	std::vector<Square> &sq = dets->squares;
+	const CodeMatrix &m = pattern.matrix;
+	const std::vector<int> table = m.word_table();
+	const size_t n = sq.size();
+	// Connected components of the (image-sense) grid: each is one projector's copy, or a part.
+	std::vector<int> comp(n, -1);
+	std::vector<std::vector<int>> members;
+	for (size_t s = 0; s < n; s++) {
+		if (comp[s] >= 0)
+			continue;
+		int id = int(members.size());
+		members.emplace_back();
+		std::vector<int> stack{int(s)};
+		comp[s] = id;
+		while (!stack.empty()) {
+			int i = stack.back();
+			stack.pop_back();
+			members.back().push_back(i);
+			for (int j : sq[size_t(i)].neighbours)
+				if (j >= 0 && comp[size_t(j)] < 0) {
+					comp[size_t(j)] = id;
+					stack.push_back(j);
+				}
+		}
+	}
+	// Directions in clockwise order (up, right, down, left) as indices of Square::neighbours.
+	const int cw[4] = {0, 2, 3, 1};
+	const int cw_pos[4] = {0, 3, 1, 2}; // inverse of cw
 	dets->detected = int(n);
 	dets->decoded = dets->corrected = dets->rejected = 0;
-	for (size_t i = 0; i < n; i++) {
-		sq[i].cell = final_cell[i];
-		sq[i].corrected = final_cell[i] >= 0 && corrected[i];
-		if (final_cell[i] >= 0) {
-			dets->decoded++;
-			dets->corrected += sq[i].corrected;
-		} else if (touched[i]) {
-			dets->rejected++;
+	std::vector<int> local(n, -1);
+	for (const std::vector<int> &mem : members) {
+		for (size_t k = 0; k < mem.size(); k++)
+			local[size_t(mem[k])] = int(k);
+		// The slide may appear rotated by a quarter turn in the image (a projector rolled 90°,
+		// a camera on its side): try the four, keep the one that decodes the most squares.
+		Decoded best;
+		std::vector<Square> best_sub;
+		const int rotations = params.any_rotation ? 4 : 1;
+		for (int rot = 0; rot < rotations; rot++) {
+			std::vector<Square> sub;
+			sub.reserve(mem.size());
+			for (int i : mem) {
+				Square s = sq[size_t(i)];
+				// Slide direction d appears as image direction d turned `rot` steps clockwise.
+				for (int d = 0; d < 4; d++) {
+					int img_dir = cw[(cw_pos[d] + rot) % 4];
+					int j = sq[size_t(i)].neighbours[size_t(img_dir)];
+					s.neighbours[size_t(d)] = j >= 0 ? local[size_t(j)] : -1;
+				}
+				// Slide corner k (TL, TR, BR, BL: clockwise) is image corner k + rot.
+				for (int k = 0; k < 4; k++)
+					s.corners[size_t(k)] = sq[size_t(i)].corners[size_t((k + rot) % 4)];
+				sub.push_back(s);
+			}
+			Decoded d = decode_core(sub, m, table, params);
+			if (rot == 0 || d.decoded > best.decoded) {
+				best = std::move(d);
+				best_sub = std::move(sub);
+			}
+		}
+		for (size_t k = 0; k < mem.size(); k++) {
+			Square &s = sq[size_t(mem[k])];
+			const Square &b = best_sub[k];
+			s.corners = b.corners;
+			for (int d = 0; d < 4; d++)
+				s.neighbours[size_t(d)] = b.neighbours[size_t(d)] >= 0 ? mem[size_t(b.neighbours[size_t(d)])] : -1;
+			s.cell = best.cell[k];
+			s.corrected = s.cell >= 0 && best.corrected[k];
+			if (s.cell >= 0) {
+				dets->decoded++;
+				dets->corrected += s.corrected;
+			} else if (best.touched[k]) {
+				dets->rejected++;
+			}
 		}
 	}
 }

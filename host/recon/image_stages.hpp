@@ -129,9 +129,10 @@ struct GridParams {
 	double tolerance = 0.35;
 };
 
-/// Links each square to its up/left/right/down neighbour in the slide's sense: the square's own
-/// corners define a local homography to slide units, in which the neighbour's centre must lie
-/// one pitch away. Links are kept only when mutual. `gap_fraction` is the slide's.
+/// Links each square to its up/left/right/down neighbour in the image's sense (decode_cells turns
+/// them into the slide's sense): the square's own corners define a local homography to slide
+/// units, in which the neighbour's centre must lie one pitch away. Links are kept only when
+/// mutual. `gap_fraction` is the slide's.
 void link_grid(double gap_fraction, const GridParams &params, std::vector<Square> *squares);
 
 // ---- stage 3: decoding -----------------------------------------------------------------------
@@ -143,10 +144,15 @@ struct DecodeParams {
 	int min_support = 1;
 	/// Rounds of propagation of cell ids from decoded neighbours (border squares, gaps).
 	int propagate_rounds = 3;
+	/// Try the slide turned by a quarter turn in the image (projectors rolled 90°, as in the
+	/// default simulated rig), per connected part of the grid.
+	bool any_rotation = true;
 };
 
 /// Decodes the code word (up, left, centre, right, down) of each square to its matrix cell,
 /// corrects single errors, checks neighbour agreement, propagates ids to undecoded neighbours.
+/// Per connected part of the grid it finds the slide's quarter-turn rotation in the image (the
+/// one that decodes most squares) and rewrites neighbours and corners into the slide's sense.
 /// Sets cell/corrected per square and detected/decoded/corrected/rejected of `dets`.
 void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDetections *dets);
 
@@ -173,12 +179,18 @@ struct MatchParams {
 	double min_depth_mm = 150, max_depth_mm = 1500;
 	bool corners = true;		// also match the 4 corners of matched squares
 	double max_corner_epipolar_px = 1.5;
+	/// Two connected parts of the decoded grids (one in each camera) show the same copy of the
+	/// slide when at least this fraction of their shared cells, and this many (or all when
+	/// fewer), pass the epipolar and depth checks.
+	double min_part_agreement = 0.6;
+	int min_part_support = 3;
 };
 
 /// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same
-/// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth;
-/// a cell with several candidates (the three projector copies) is kept only when exactly one
-/// candidate is geometrically consistent (rejected_ambiguous otherwise).
+/// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth,
+/// and when the connected grid parts the two squares belong to agree as a whole (the same copy of
+/// the slide: all three projectors throw it). A square with several such candidates is rejected
+/// (rejected_ambiguous), one with none counts in rejected_epipolar.
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
 		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
 		  PairMatches *ret);

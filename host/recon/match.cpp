@@ -7,6 +7,7 @@
 #include <opencv2/calib3d.hpp>
 
 #include <cmath>
+#include <map>
 #include <unordered_map>
 
 namespace facescan::recon {
@@ -63,6 +64,36 @@ struct Geometry {
 	}
 };
 
+// Connected parts of a camera's decoded grid: squares linked by neighbours whose cells agree.
+std::vector<int> grid_parts(const CameraDetections &d, int cols)
+{
+	constexpr int dr[4] = {-1, 0, 0, 1}, dc[4] = {0, -1, 1, 0};
+	std::vector<int> part(d.squares.size(), -1);
+	int next = 0;
+	for (size_t s = 0; s < d.squares.size(); s++) {
+		if (part[s] >= 0 || d.squares[s].cell < 0)
+			continue;
+		std::vector<int> stack{int(s)};
+		part[s] = next;
+		while (!stack.empty()) {
+			const Square &q = d.squares[size_t(stack.back())];
+			stack.pop_back();
+			for (int k = 0; k < 4; k++) {
+				int j = q.neighbours[size_t(k)];
+				if (j < 0 || part[size_t(j)] >= 0)
+					continue;
+				int want = (q.cell / cols + dr[k]) * cols + q.cell % cols + dc[k];
+				if (d.squares[size_t(j)].cell != want)
+					continue;
+				part[size_t(j)] = next;
+				stack.push_back(j);
+			}
+		}
+		next++;
+	}
+	return part;
+}
+
 } // namespace
 
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
@@ -87,12 +118,16 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 	for (size_t j = 0; j < b.squares.size(); j++)
 		if (b.squares[j].cell >= 0 && b.squares[j].cell < cells)
 			by_cell[b.squares[j].cell].push_back(int(j));
+	const int cols = pattern.matrix.cols();
+	std::vector<int> comp_a = grid_parts(a, cols), comp_b = grid_parts(b, cols);
 
-	PairMatches out;
-	out.cam_a = a.camera;
-	out.cam_b = b.camera;
-	std::vector<int> partner(a.squares.size(), -1);
-	std::vector<int> taken(b.squares.size(), 0);
+	// Every same-cell candidate, with its geometric verdict, tallied per pair of grid parts.
+	struct Cand {
+		int i, j;
+		bool ok;
+	};
+	std::vector<Cand> cands;
+	std::map<std::pair<int, int>, std::pair<int, int>> tally; // (part a, part b) → (ok, total)
 	for (size_t i = 0; i < a.squares.size(); i++) {
 		int cell = a.squares[i].cell;
 		if (cell < 0)
@@ -100,23 +135,48 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		auto it = by_cell.find(cell);
 		if (it == by_cell.end())
 			continue;
-		int valid = 0, pick = -1;
 		for (int j : it->second) {
 			const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
 			double z = 0;
-			if (g.epipolar(pa, pb) > params.max_epipolar_px || !g.depth(pa, pb, &z) ||
-			    z < params.min_depth_mm || z > params.max_depth_mm)
-				continue;
-			valid++;
-			pick = j;
+			bool ok = g.epipolar(pa, pb) <= params.max_epipolar_px && g.depth(pa, pb, &z) &&
+				  z >= params.min_depth_mm && z <= params.max_depth_mm;
+			cands.push_back({int(i), j, ok});
+			auto &t = tally[{comp_a[i], comp_b[size_t(j)]}];
+			t.first += ok;
+			t.second++;
 		}
-		if (valid == 0) {
+	}
+	// A part of the grid in a and one in b show the same copy of the slide when most of the
+	// cells they share are geometrically consistent; a wrong copy fails on most of them (the
+	// copies lie on different parts of the face, so their rows do not share epipolar lines).
+	auto same_copy = [&](int pa, int pb) {
+		const auto &t = tally[{pa, pb}];
+		return t.first >= std::min(params.min_part_support, t.second) &&
+		       t.first >= params.min_part_agreement * t.second;
+	};
+	PairMatches out;
+	out.cam_a = a.camera;
+	out.cam_b = b.camera;
+	std::vector<int> partner(a.squares.size(), -1), valid(a.squares.size(), 0), seen(a.squares.size(), 0);
+	std::vector<int> taken(b.squares.size(), 0);
+	for (const Cand &c : cands) {
+		seen[size_t(c.i)]++;
+		if (!c.ok || !same_copy(comp_a[size_t(c.i)], comp_b[size_t(c.j)]))
+			continue;
+		valid[size_t(c.i)]++;
+		partner[size_t(c.i)] = c.j;
+	}
+	for (size_t i = 0; i < a.squares.size(); i++) {
+		if (!seen[i])
+			continue;
+		if (valid[i] == 0) {
 			out.rejected_epipolar++;
-		} else if (valid > 1) {
+			partner[i] = -1;
+		} else if (valid[i] > 1) {
 			out.rejected_ambiguous++;
+			partner[i] = -1;
 		} else {
-			partner[i] = pick;
-			taken[size_t(pick)]++;
+			taken[size_t(partner[i])]++;
 		}
 	}
 	for (size_t i = 0; i < a.squares.size(); i++) {

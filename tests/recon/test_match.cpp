@@ -1,0 +1,197 @@
+// Stage 4: correspondence on a synthetic stereo pair with known geometry. Three copies of the slide
+// lie side by side on a face-like cylinder (three projectors, one slide); both cameras see parts
+// of all three. Every match must pair the same square of the same copy.
+#include "recon/image_stages.hpp"
+
+#include "cmocka.hpp"
+
+#include <opencv2/calib3d.hpp>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace facescan;
+using namespace facescan::recon;
+
+static CameraModel camera_at(double azimuth_deg, const cv::Vec3d &target, double distance)
+{
+	double a = azimuth_deg * M_PI / 180;
+	cv::Vec3d eye = target + distance * cv::Vec3d(std::sin(a), 0, std::cos(a));
+	cv::Vec3d z = cv::normalize(target - eye);
+	cv::Vec3d x = cv::normalize(z.cross(cv::Vec3d(0, 1, 0)));
+	cv::Vec3d y = z.cross(x); // image y points down
+	CameraModel c;
+	c.R = cv::Matx33d(x[0], x[1], x[2], y[0], y[1], y[2], z[0], z[1], z[2]);
+	c.T = -(c.R * eye);
+	c.K = cv::Matx33d(2000, 0, 801.5, 0, 2002, 598.5, 0, 0, 1);
+	c.dist = {-0.06, 0.09, 0.0004, -0.0003, 0};
+	c.size = {1600, 1200};
+	return c;
+}
+
+struct Scene {
+	std::vector<CameraDetections> dets;	// per camera
+	std::vector<std::vector<int>> copy_of;	// per camera, per square: which copy
+};
+
+// The slide's copy k on a cylinder of radius 120 mm about the y axis (front at z = 40 mm).
+static cv::Vec3d on_face(const Pattern &p, int copy, const cv::Point2d &slide, const double *lift)
+{
+	const double mm = 0.2, radius = 120;
+	double theta = (copy - 1) * 0.95 + (slide.x - p.slide.width / 2.0) * mm / radius;
+	double y = -(slide.y - p.slide.height / 2.0) * mm + lift[copy];
+	return {radius * std::sin(theta), y, radius * std::cos(theta) - 80};
+}
+
+static Scene make_scene(const Pattern &p, const std::vector<CameraModel> &cams, const double *lift,
+			double noise_px, uint64_t seed)
+{
+	Scene s;
+	cv::RNG rng(seed);
+	const CodeMatrix &m = p.matrix;
+	for (const CameraModel &cam : cams) {
+		CameraDetections d;
+		std::vector<int> copies;
+		cv::Vec3d eye = cam.centre();
+		std::vector<std::vector<int>> index(3, std::vector<int>(size_t(m.rows() * m.cols()), -1));
+		for (int copy = 0; copy < 3; copy++)
+			for (int r = 0; r < m.rows(); r++)
+				for (int c = 0; c < m.cols(); c++) {
+					cv::Rect2d rc = p.cell_rect(r, c);
+					std::vector<cv::Point3d> world = {
+						on_face(p, copy, {rc.x, rc.y}, lift),
+						on_face(p, copy, {rc.x + rc.width, rc.y}, lift),
+						on_face(p, copy, {rc.x + rc.width, rc.y + rc.height}, lift),
+						on_face(p, copy, {rc.x, rc.y + rc.height}, lift)};
+					cv::Vec3d ctr = on_face(p, copy, {rc.x + rc.width / 2, rc.y + rc.height / 2}, lift);
+					cv::Vec3d normal(ctr[0], 0, ctr[2] + 80);
+					if (normal.dot(eye - ctr) < 0.35 * cv::norm(normal) * cv::norm(eye - ctr))
+						continue; // grazing or facing away
+					std::vector<cv::Point2d> img;
+					cv::Mat rvec;
+					cv::Rodrigues(cv::Mat(cam.R), rvec);
+					cv::projectPoints(world, rvec, cv::Mat(cam.T), cv::Mat(cam.K), cv::Mat(cam.dist), img);
+					Square q;
+					bool inside = true;
+					for (size_t k = 0; k < 4; k++) {
+						q.corners[k] = img[k] + cv::Point2d(rng.gaussian(noise_px), rng.gaussian(noise_px));
+						inside = inside && img[k].x > 0 && img[k].y > 0 && img[k].x < 1600 && img[k].y < 1200;
+					}
+					if (!inside)
+						continue;
+					q.has_corners = true;
+					q.centroid = 0.25 * (q.corners[0] + q.corners[1] + q.corners[2] + q.corners[3]);
+					q.cell = r * m.cols() + c;
+					q.letter = m.at(r, c);
+					index[size_t(copy)][size_t(q.cell)] = int(d.squares.size());
+					d.squares.push_back(q);
+					copies.push_back(copy);
+				}
+		const int dr[4] = {-1, 0, 0, 1}, dc[4] = {0, -1, 1, 0};
+		for (size_t i = 0; i < d.squares.size(); i++) {
+			int cell = d.squares[i].cell, r = cell / m.cols(), c = cell % m.cols();
+			for (int k = 0; k < 4; k++) {
+				int rr = r + dr[k], cc = c + dc[k];
+				if (rr >= 0 && cc >= 0 && rr < m.rows() && cc < m.cols())
+					d.squares[i].neighbours[size_t(k)] = index[size_t(copies[i])][size_t(rr * m.cols() + cc)];
+			}
+		}
+		d.camera = int(s.dets.size());
+		s.dets.push_back(d);
+		s.copy_of.push_back(copies);
+	}
+	return s;
+}
+
+struct Outcome {
+	int centroids = 0, corners = 0, wrong = 0, possible = 0;
+};
+
+static Outcome check(const Scene &s, const PairMatches &pm)
+{
+	Outcome o;
+	for (const PointMatch &m : pm.matches) {
+		const Square &qa = s.dets[0].squares[size_t(m.square_a)], &qb = s.dets[1].squares[size_t(m.square_b)];
+		bool right = qa.cell == qb.cell && s.copy_of[0][size_t(m.square_a)] == s.copy_of[1][size_t(m.square_b)];
+		o.wrong += !right;
+		if (m.feature == kCentroid)
+			o.centroids++;
+		else
+			o.corners++;
+		assert_int_equal(m.cell, qa.cell);
+		cv::Point2d want_a = m.feature == kCentroid ? qa.centroid : qa.corners[size_t(m.feature - 1)];
+		assert_true(cv::norm(want_a - m.a) < 1e-9);
+	}
+	for (size_t i = 0; i < s.dets[0].squares.size(); i++)
+		for (size_t j = 0; j < s.dets[1].squares.size(); j++)
+			o.possible += s.dets[0].squares[i].cell == s.dets[1].squares[j].cell &&
+				      s.copy_of[0][i] == s.copy_of[1][j];
+	return o;
+}
+
+static void matches_pair_the_same_copy_only(void **)
+{
+	Pattern p;
+	assert_true(default_pattern(SlideSpec{}, &p).ok());
+	const cv::Vec3d target(0, -10, 40);
+	std::vector<CameraModel> cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
+	const double lift[3] = {-6, 0, 7}; // projectors at different heights
+	Scene s = make_scene(p, cams, lift, 0.05, 3);
+	PairMatches pm;
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, MatchParams{}, &pm).ok());
+	Outcome o = check(s, pm);
+	std::printf("stereo pair: %d of %d square matches, %d corner matches, %d wrong; rejected %d "
+		    "epipolar, %d ambiguous\n",
+		    o.centroids, o.possible, o.corners, o.wrong, pm.rejected_epipolar, pm.rejected_ambiguous);
+	assert_int_equal(o.wrong, 0);
+	assert_true(o.centroids >= int(0.95 * o.possible));
+	assert_true(o.corners >= 4 * o.centroids - 4);
+	assert_true(pm.rejected_epipolar > 0); // the other copies of each cell were seen and refused
+	assert_int_equal(pm.cam_a, 0);
+	assert_int_equal(pm.cam_b, 1);
+
+	// A square moved off its epipolar line is refused, and nothing else changes.
+	Scene moved = s;
+	int victim = -1;
+	for (const PointMatch &m : pm.matches)
+		if (m.feature == kCentroid) {
+			victim = m.square_b;
+			break;
+		}
+	assert_true(victim >= 0);
+	Square &q = moved.dets[1].squares[size_t(victim)];
+	q.centroid.y += 12;
+	for (auto &c : q.corners)
+		c.y += 12;
+	PairMatches pm2;
+	assert_true(match_pair(moved.dets[0], moved.dets[1], cams[0], cams[1], p, MatchParams{}, &pm2).ok());
+	Outcome o2 = check(moved, pm2);
+	assert_int_equal(o2.wrong, 0);
+	assert_int_equal(o2.centroids, o.centroids - 1);
+	for (const PointMatch &m : pm2.matches)
+		assert_int_not_equal(m.square_b, victim);
+
+	// Copies exactly side by side at one height: a wrong copy can share the epipolar lines;
+	// whatever is ambiguous must be refused, never mismatched.
+	const double flat[3] = {0, 0, 0};
+	Scene aligned = make_scene(p, cams, flat, 0.05, 4);
+	PairMatches pm3;
+	assert_true(match_pair(aligned.dets[0], aligned.dets[1], cams[0], cams[1], p, MatchParams{}, &pm3).ok());
+	Outcome o3 = check(aligned, pm3);
+	std::printf("aligned copies: %d of %d square matches, %d wrong, %d ambiguous\n", o3.centroids,
+		    o3.possible, o3.wrong, pm3.rejected_ambiguous);
+	assert_int_equal(o3.wrong, 0);
+
+	// Bad calibration is an error, not an empty result.
+	CameraModel bad = cams[1];
+	bad.K = cv::Matx33d::zeros();
+	assert_false(match_pair(s.dets[0], s.dets[1], cams[0], bad, p, MatchParams{}, &pm).ok());
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(matches_pair_the_same_copy_only),
+	};
+	return cmocka_run_group_tests(tests, nullptr, nullptr);
+}
