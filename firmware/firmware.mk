@@ -91,7 +91,12 @@ $(FUZZ_DIR)/fuzz_protocol: $(FUZZ_SRC) $(wildcard firmware/*.h firmware/*/*.h fi
 .PHONY: fuzz
 fuzz: $(FUZZ_DIR)/fuzz_protocol
 	@mkdir -p $(FUZZ_DIR)/corpus $(FUZZ_DIR)/artifacts
-	$(FUZZ_DIR)/fuzz_protocol -seed_corpus_gen=$(FUZZ_DIR)/corpus >/dev/null
-	$(FUZZ_DIR)/fuzz_protocol -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
-		-artifact_prefix=$(FUZZ_DIR)/artifacts/ $(FUZZ_DIR)/corpus 2>&1 | \
-		tee $(FUZZ_DIR)/last-run.log | grep -E '^(stat::|Done|==|SUMMARY)'
+	@FS_FUZZ_SEEDS=$(FUZZ_DIR)/corpus $(FUZZ_DIR)/fuzz_protocol -runs=0 >/dev/null 2>&1
+	@echo "fuzzing the protocol decoder + command handler for $(FUZZ_SECONDS) s"
+	@$(FUZZ_DIR)/fuzz_protocol -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
+		-artifact_prefix=$(FUZZ_DIR)/artifacts/ $(FUZZ_DIR)/corpus \
+		>$(FUZZ_DIR)/last-run.log 2>&1; rc=$$?; \
+	grep -E '^(stat::number_of_executed_units|stat::average_exec_per_sec|Done|SUMMARY)' \
+		$(FUZZ_DIR)/last-run.log; \
+	echo "crash artifacts: $$(ls $(FUZZ_DIR)/artifacts | wc -l) (in $(FUZZ_DIR)/artifacts)"; \
+	exit $$rc
