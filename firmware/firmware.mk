@@ -86,7 +86,11 @@ FUZZ_SRC := tests/firmware/fuzz_protocol.c firmware/protocol/protocol.c $(FW_COR
 
 $(FUZZ_DIR)/fuzz_protocol: $(FUZZ_SRC) $(wildcard firmware/*.h firmware/*/*.h firmware/boards/native/*.h)
 	@mkdir -p $(dir $@)
-	clang $(FUZZ_CFLAGS) -o $@ $(FUZZ_SRC)
+	@$(if $(V),,echo "  FUZZ  $@")
+	$(Q)clang $(FUZZ_CFLAGS) -o $@ $(FUZZ_SRC)
+
+# Built with the firmware so tests/firmware/test_fuzz_replay.sh keeps it compiling and sane.
+firmware: $(FUZZ_DIR)/fuzz_protocol
 
 .PHONY: fuzz
 fuzz: $(FUZZ_DIR)/fuzz_protocol
