@@ -14,6 +14,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <inttypes.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +27,7 @@
 
 struct posix {
 	char *share, *spool;
+	char *marker; /* NULL = none */
 	int spool_fd;
 	uint64_t min_free, spool_min_free;
 	mode_t mode;
@@ -104,6 +106,14 @@ static int posix_open(const struct fscan_storage_config *cfg, void **ret_ctx)
 	p->spool = strdup(cfg->spool_dir);
 	if (!p->share || !p->spool)
 		goto err_free;
+	if (cfg->share_marker) {
+		if (!*cfg->share_marker || strchr(cfg->share_marker, '/')) {
+			r = -EINVAL;
+			goto err_free;
+		}
+		if (!(p->marker = strdup(cfg->share_marker)))
+			goto err_free;
+	}
 	p->min_free = cfg->min_free_bytes ? cfg->min_free_bytes : FSCAN_STORAGE_DEFAULT_MIN_FREE;
 	p->spool_min_free = cfg->spool_min_free ? cfg->spool_min_free : FSCAN_STORAGE_DEFAULT_MIN_FREE;
 	p->mode = cfg->file_mode ? cfg->file_mode : 0640;
@@ -130,6 +140,7 @@ static int posix_open(const struct fscan_storage_config *cfg, void **ret_ctx)
 err_close:
 	close(p->spool_fd);
 err_free:
+	free(p->marker);
 	free(p->share);
 	free(p->spool);
 	free(p);
@@ -140,6 +151,7 @@ static void posix_close(void *ctx)
 {
 	struct posix *p = ctx;
 	close(p->spool_fd);
+	free(p->marker);
 	free(p->share);
 	free(p->spool);
 	free(p);
@@ -181,10 +193,25 @@ static int open_parent(struct posix *p, const char *relpath, const char **ret_na
 	return fd;
 }
 
+/* 0 when the share is there (and carries its marker, if one is configured), else -ENOENT. */
+static int share_present(struct posix *p)
+{
+	if (!p->marker)
+		return 0;
+	char path[PATH_MAX];
+	int n = snprintf(path, sizeof(path), "%s/%s", p->share, p->marker);
+	if (n < 0 || (size_t)n >= sizeof(path))
+		return -ENAMETOOLONG;
+	return access(path, F_OK) == 0 ? 0 : -ENOENT;
+}
+
 static int deliver(struct posix *p, const char *relpath, const void *data, size_t len)
 {
 	uint64_t avail;
-	int r = free_bytes(p->share, &avail);
+	int r = share_present(p);
+	if (r < 0)
+		return r;
+	r = free_bytes(p->share, &avail);
 	if (r < 0)
 		return r;
 	if (avail < len || avail - len < p->min_free)
@@ -370,7 +397,8 @@ static int posix_put(void *ctx, const char *relpath, const void *data, size_t le
 static int posix_share_free(void *ctx, uint64_t *ret_bytes)
 {
 	struct posix *p = ctx;
-	return free_bytes(p->share, ret_bytes);
+	int r = share_present(p);
+	return r < 0 ? r : free_bytes(p->share, ret_bytes);
 }
 
 const struct fscan_storage_ops fscan_storage_posix_ops = {

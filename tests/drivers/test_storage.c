@@ -360,6 +360,35 @@ static void test_posix_stale_temp_swept(void **s)
 	env_free(e);
 }
 
+/* An unmounted share leaves an empty mount point: with a marker configured, that is "missing"
+ * and files are spooled instead of landing on the local disk. */
+static void test_posix_share_marker(void **s)
+{
+	(void)s;
+	struct env *e = env_new(&fscan_storage_posix_ops);
+	fscan_storage_destroy(e->st);
+	struct fscan_storage_config cfg = {.share_dir = e->share, .spool_dir = e->spool, .min_free_bytes = 1,
+					   .share_marker = ".facescan-share"};
+	assert_int_equal(fscan_storage_create(&fscan_storage_posix_ops, &cfg, &e->st), 0);
+	assert_int_equal(fscan_storage_put(e->st, "m/1", "one", 3), FSCAN_STORAGE_SPOOLED);
+	uint64_t free_bytes;
+	assert_int_equal(fscan_storage_share_free(e->st, &free_bytes), -ENOENT);
+	assert_int_equal(count_files(e->share, NULL), 0);
+	/* "Mounted": the marker is there. */
+	char p[256];
+	snprintf(p, sizeof(p), "%s/.facescan-share", e->share);
+	FILE *f = fopen(p, "w");
+	fclose(f);
+	assert_int_equal(fscan_storage_put(e->st, "m/2", "two", 3), FSCAN_STORAGE_DELIVERED);
+	assert_string_equal(read_share(e, "m/1"), "one");
+	assert_string_equal(read_share(e, "m/2"), "two");
+	fscan_storage_destroy(e->st);
+	cfg.share_marker = "a/b";
+	assert_int_equal(fscan_storage_create(&fscan_storage_posix_ops, &cfg, &e->st), -EINVAL);
+	e->st = NULL;
+	env_free(e);
+}
+
 /* kill -9 of a writer in the middle of puts: whatever it left, the share shows only complete
  * files, and a restarted writer delivers its spool with nothing lost. */
 static void test_posix_kill9_mid_write(void **s)
@@ -432,6 +461,7 @@ int main(void)
 		cmocka_unit_test(test_posix_crash_between_rename_and_unlink),
 		cmocka_unit_test(test_posix_damaged_spool_entry_set_aside),
 		cmocka_unit_test(test_posix_stale_temp_swept),
+		cmocka_unit_test(test_posix_share_marker),
 		cmocka_unit_test(test_posix_kill9_mid_write),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);

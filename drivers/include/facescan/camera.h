@@ -87,6 +87,8 @@ struct fscan_camera_config {
 	bool external_trigger;    /* true in the booth; the fake/sim/replay ignore it */
 };
 
+/* C++ callers: the function fscan_camera_info() hides this tag, so write
+ * `struct fscan_camera_info info;`. */
 struct fscan_camera_info {
 	char id[64];             /* stable id (libcamera id, "replay:cam0", "fake:0") */
 	char model[32];

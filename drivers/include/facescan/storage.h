@@ -36,6 +36,10 @@ struct fscan_storage_config {
 	uint64_t min_free_bytes;   /* keep this much free on the share; 0 = 64 MiB */
 	uint64_t spool_min_free;   /* refuse to spool below this free space; 0 = 64 MiB */
 	mode_t file_mode;          /* mode of delivered files; 0 = 0640 */
+	/* Optional: a file that must exist at the share's root for the share to count as there.
+	 * An unmounted network share leaves its mount point behind as an empty local directory;
+	 * without a marker, files would land on the local disk instead of being spooled. */
+	const char *share_marker;
 };
 
 enum fscan_storage_result {
