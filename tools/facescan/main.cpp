@@ -11,11 +11,17 @@ using facescan::cli::Verb;
 // One line per verb; the implementation stays with the component it drives.
 namespace facescan::cli {
 int pattern_main(int argc, char **argv);
+int scan_main(int argc, char **argv);
+int status_main(int argc, char **argv);
+int last_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
 	{"version", "print the software version", nullptr},
 	{"pattern", "generate the code matrix and the projector slide", facescan::cli::pattern_main},
+	{"scan", "ask facescand for a scan of a patient and follow it", facescan::cli::scan_main},
+	{"status", "what facescand is doing now", facescan::cli::status_main},
+	{"last", "the outcome of the most recent scan", facescan::cli::last_main},
 };
 
 static void usage(FILE *out)

@@ -1,0 +1,294 @@
+#include "daemon/config.hpp"
+#include "daemon/patient_id.hpp"
+
+#include <cerrno>
+#include <climits>
+#include <cstdlib>
+#include <fstream>
+#include <functional>
+#include <set>
+#include <sstream>
+
+namespace facescan::daemon {
+
+namespace {
+
+using Setter = std::function<std::string(Config &, const std::string &)>; // "" = ok, else reason
+using Getter = std::function<std::string(const Config &)>;
+
+struct Key {
+	const char *name;
+	const char *doc;
+	Setter set;
+	Getter get;
+};
+
+Setter int_in(int Config::*field, long lo, long hi)
+{
+	return [field, lo, hi](Config &c, const std::string &v) -> std::string {
+		if (v.empty())
+			return "empty value";
+		char *end = nullptr;
+		errno = 0;
+		long n = std::strtol(v.c_str(), &end, 10);
+		if (errno || *end)
+			return "'" + v + "' is not an integer";
+		if (n < lo || n > hi)
+			return v + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]";
+		c.*field = static_cast<int>(n);
+		return "";
+	};
+}
+
+Getter int_of(int Config::*field)
+{
+	return [field](const Config &c) { return std::to_string(c.*field); };
+}
+
+Setter path_in(std::string Config::*field, bool may_be_empty)
+{
+	return [field, may_be_empty](Config &c, const std::string &v) -> std::string {
+		if (v.empty())
+			return may_be_empty ? (c.*field = v, "") : "empty value";
+		if (v[0] != '/')
+			return "'" + v + "' is not an absolute path";
+		c.*field = v;
+		return "";
+	};
+}
+
+Setter word_in(std::string Config::*field, std::set<std::string> allowed)
+{
+	return [field, allowed](Config &c, const std::string &v) -> std::string {
+		if (!allowed.empty() && !allowed.count(v)) {
+			std::string list;
+			for (const auto &a : allowed)
+				list += (list.empty() ? "" : ", ") + a;
+			return "'" + v + "' is not one of: " + list;
+		}
+		if (allowed.empty() && v.empty())
+			return "empty value";
+		c.*field = v;
+		return "";
+	};
+}
+
+Getter str_of(std::string Config::*field)
+{
+	return [field](const Config &c) { return c.*field; };
+}
+
+Setter bool_in(bool Config::*field)
+{
+	return [field](Config &c, const std::string &v) -> std::string {
+		if (v == "true" || v == "yes" || v == "1")
+			c.*field = true;
+		else if (v == "false" || v == "no" || v == "0")
+			c.*field = false;
+		else
+			return "'" + v + "' is not a boolean (true/false)";
+		return "";
+	};
+}
+
+const std::vector<Key> &keys()
+{
+	static const std::vector<Key> table = {
+		{"mode", "clinic: scans are requested over the socket; booth: the button starts them",
+		 [](Config &c, const std::string &v) -> std::string {
+			 if (v == "clinic")
+				 c.mode = Mode::clinic;
+			 else if (v == "booth")
+				 c.mode = Mode::booth;
+			 else
+				 return "'" + v + "' is not one of: booth, clinic";
+			 return "";
+		 },
+		 [](const Config &c) { return std::string(mode_name(c.mode)); }},
+		{"share_dir", "the clinic share; meshes land in <share_dir>/<patient-id>/ (never created)",
+		 path_in(&Config::share_dir, false), str_of(&Config::share_dir)},
+		{"spool_dir", "local queue for scans the share cannot take yet, and the daemon's state",
+		 path_in(&Config::spool_dir, false), str_of(&Config::spool_dir)},
+		{"socket_path", "unix control socket (mode 0660)", path_in(&Config::socket_path, false),
+		 str_of(&Config::socket_path)},
+		{"socket_group", "group that may use the socket; empty: the daemon's own group",
+		 [](Config &c, const std::string &v) -> std::string {
+			 for (char ch : v)
+				 if (!(isalnum(static_cast<unsigned char>(ch)) || ch == '_' || ch == '-'))
+					 return "'" + v + "' is not a group name";
+			 c.socket_group = v;
+			 return "";
+		 },
+		 str_of(&Config::socket_group)},
+		{"camera_backend", "simulated | replay | libcamera | fake",
+		 word_in(&Config::camera_backend, {"simulated", "replay", "libcamera", "fake"}),
+		 str_of(&Config::camera_backend)},
+		{"camera_count", "cameras in the booth", int_in(&Config::camera_count, 1, 16),
+		 int_of(&Config::camera_count)},
+		{"replay_dir", "capture set played back by the replay backend",
+		 path_in(&Config::replay_dir, true), str_of(&Config::replay_dir)},
+		{"sim_scene", "scene rendered by the simulated backend", word_in(&Config::sim_scene, {}),
+		 str_of(&Config::sim_scene)},
+		{"serial_device", "tty of the trigger MCU, or 'fake' for the in-process MCU",
+		 [](Config &c, const std::string &v) -> std::string {
+			 if (v != "fake" && (v.empty() || v[0] != '/'))
+				 return "'" + v + "' is neither 'fake' nor an absolute device path";
+			 c.serial_device = v;
+			 return "";
+		 },
+		 str_of(&Config::serial_device)},
+		{"serial_baud", "baud rate of the MCU link", int_in(&Config::serial_baud, 1200, 4000000),
+		 int_of(&Config::serial_baud)},
+		{"button_source", "none | mcu (the firmware's button event) | gpio (a libgpiod line)",
+		 [](Config &c, const std::string &v) -> std::string {
+			 if (v == "none")
+				 c.button_source = ButtonSource::none;
+			 else if (v == "mcu")
+				 c.button_source = ButtonSource::mcu;
+			 else if (v == "gpio")
+				 c.button_source = ButtonSource::gpio;
+			 else
+				 return "'" + v + "' is not one of: gpio, mcu, none";
+			 return "";
+		 },
+		 [](const Config &c) {
+			 return std::string(c.button_source == ButtonSource::none  ? "none"
+					    : c.button_source == ButtonSource::mcu ? "mcu"
+										   : "gpio");
+		 }},
+		{"gpio_chip", "gpiochip of the button, LED and MCU reset lines",
+		 word_in(&Config::gpio_chip, {}), str_of(&Config::gpio_chip)},
+		{"gpio_button_line", "line offset of the booth button; -1: not wired",
+		 int_in(&Config::gpio_button_line, -1, 1023), int_of(&Config::gpio_button_line)},
+		{"gpio_led_line", "line offset of the status LED; -1: not wired",
+		 int_in(&Config::gpio_led_line, -1, 1023), int_of(&Config::gpio_led_line)},
+		{"gpio_mcu_reset_line", "line offset of the MCU reset; -1: not wired",
+		 int_in(&Config::gpio_mcu_reset_line, -1, 1023), int_of(&Config::gpio_mcu_reset_line)},
+		{"booth_patient_id", "patient id of a button press when no scan is armed",
+		 word_in(&Config::booth_patient_id, {}), str_of(&Config::booth_patient_id)},
+		{"arm_timeout_ms", "booth mode: how long an armed scan waits for the button",
+		 int_in(&Config::arm_timeout_ms, 1000, 3600000), int_of(&Config::arm_timeout_ms)},
+		{"mcu_timeout_ms", "reply and trigger-report timeout of the MCU",
+		 int_in(&Config::mcu_timeout_ms, 50, 60000), int_of(&Config::mcu_timeout_ms)},
+		{"capture_timeout_ms", "time for all frames of one trigger to arrive",
+		 int_in(&Config::capture_timeout_ms, 50, 600000), int_of(&Config::capture_timeout_ms)},
+		{"max_frame_skew_us", "sensor timestamps of one trigger may differ this much",
+		 int_in(&Config::max_frame_skew_us, 0, 1000000), int_of(&Config::max_frame_skew_us)},
+		{"projector_settle_us", "firmware: projectors on → first shutter",
+		 int_in(&Config::projector_settle_us, 0, 1000000), int_of(&Config::projector_settle_us)},
+		{"exposure_us", "firmware: shutter pulse width of the pattern frames",
+		 int_in(&Config::exposure_us, 10, 1000000), int_of(&Config::exposure_us)},
+		{"texture_exposure_us", "firmware: shutter pulse width of the texture frames",
+		 int_in(&Config::texture_exposure_us, 10, 1000000), int_of(&Config::texture_exposure_us)},
+		{"recon_backend", "pipeline (host/recon) | fake (a fixed test mesh)",
+		 word_in(&Config::recon_backend, {"pipeline", "fake"}), str_of(&Config::recon_backend)},
+		{"min_free_mb", "free space the share must have, else the scan is spooled",
+		 int_in(&Config::min_free_mb, 0, 1000000), int_of(&Config::min_free_mb)},
+		{"spool_retry_ms", "how often spooled scans are offered to the share",
+		 int_in(&Config::spool_retry_ms, 100, 3600000), int_of(&Config::spool_retry_ms)},
+		{"stage_timeout_ms", "a stage running longer than this stops the watchdog pings",
+		 int_in(&Config::stage_timeout_ms, 1000, 3600000), int_of(&Config::stage_timeout_ms)},
+		{"keep_captures", "keep each raw capture set in <spool_dir>/captures/",
+		 bool_in(&Config::keep_captures),
+		 [](const Config &c) { return std::string(c.keep_captures ? "true" : "false"); }},
+		{"test_delay_write_ms", "fault tests only: pause between the files of a spooled scan",
+		 int_in(&Config::test_delay_write_ms, 0, 60000), int_of(&Config::test_delay_write_ms)},
+		{"test_delay_deliver_ms", "fault tests only: pause between delivered files",
+		 int_in(&Config::test_delay_deliver_ms, 0, 60000), int_of(&Config::test_delay_deliver_ms)},
+	};
+	return table;
+}
+
+std::string trim(const std::string &s)
+{
+	size_t b = s.find_first_not_of(" \t\r");
+	if (b == std::string::npos)
+		return "";
+	size_t e = s.find_last_not_of(" \t\r");
+	return s.substr(b, e - b + 1);
+}
+
+} // namespace
+
+const char *mode_name(Mode m)
+{
+	return m == Mode::booth ? "booth" : "clinic";
+}
+
+Status parse_config(const std::string &text, const std::string &name, Config *ret_config)
+{
+	Config c = *ret_config;
+	std::set<std::string> seen;
+	std::istringstream in(text);
+	std::string raw;
+	int lineno = 0;
+	while (std::getline(in, raw)) {
+		lineno++;
+		auto fail = [&](const std::string &why) {
+			return Status::error(EINVAL, name + ":" + std::to_string(lineno) + ": " + why);
+		};
+		for (char ch : raw)
+			if ((static_cast<unsigned char>(ch) < 0x20 && ch != '\t' && ch != '\r') || ch == 0x7f)
+				return fail("control character in line");
+		std::string line = trim(raw);
+		if (line.empty() || line[0] == '#')
+			continue;
+		size_t eq = line.find('=');
+		if (eq == std::string::npos)
+			return fail("expected 'key = value', got '" + line + "'");
+		std::string key = trim(line.substr(0, eq));
+		std::string value = trim(line.substr(eq + 1));
+		if (key.empty())
+			return fail("missing key before '='");
+		const Key *k = nullptr;
+		for (const Key &candidate : keys())
+			if (key == candidate.name)
+				k = &candidate;
+		if (!k)
+			return fail("unknown key '" + key + "'");
+		if (!seen.insert(key).second)
+			return fail("key '" + key + "' given twice");
+		std::string why = k->set(c, value);
+		if (!why.empty())
+			return fail(key + ": " + why);
+	}
+	if (c.camera_backend == "replay" && c.replay_dir.empty())
+		return Status::error(EINVAL, name + ": camera_backend = replay needs replay_dir");
+	if (c.button_source == ButtonSource::gpio && c.gpio_button_line < 0)
+		return Status::error(EINVAL, name + ": button_source = gpio needs gpio_button_line");
+	Status id = validate_patient_id(c.booth_patient_id);
+	if (!id.ok())
+		return Status::error(EINVAL, name + ": booth_patient_id: " + id.message());
+	if (c.share_dir == c.spool_dir)
+		return Status::error(EINVAL, name + ": share_dir and spool_dir must differ");
+	*ret_config = c;
+	return Status();
+}
+
+Status load_config(const std::string &path, Config *ret_config)
+{
+	std::ifstream f(path, std::ios::binary);
+	if (!f)
+		return Status::error(ENOENT, path + ": cannot read the config file");
+	std::ostringstream ss;
+	ss << f.rdbuf();
+	if (ss.str().size() > 1 << 20)
+		return Status::error(EFBIG, path + ": config file larger than 1 MiB");
+	return parse_config(ss.str(), path, ret_config);
+}
+
+std::string default_config_text()
+{
+	Config defaults;
+	std::string out = "# facescand configuration (/etc/facescan/facescand.conf). Defaults shown.\n";
+	for (const Key &k : keys()) {
+		out += "\n# ";
+		out += k.doc;
+		out += "\n";
+		out += k.name;
+		out += " = " + k.get(defaults) + "\n";
+	}
+	return out;
+}
+
+} // namespace facescan::daemon

@@ -1,0 +1,61 @@
+// facescand's configuration: one `key = value` per line, `#` starts a comment line.
+// Every key has a documented default (Config{} holds them; `facescand --print-config` prints
+// them as a config file). A bad file is refused as a whole with "FILE:LINE: reason".
+#pragma once
+
+#include "common/status.hpp"
+
+#include <string>
+
+namespace facescan::daemon {
+
+enum class Mode { clinic, booth };
+enum class ButtonSource { none, mcu, gpio };
+
+struct Config {
+	Mode mode = Mode::clinic;                // booth: the button starts scans; clinic: the socket
+	std::string share_dir = "/srv/facescan/share";  // the clinic share (mount point); never created
+	std::string spool_dir = "/var/spool/facescan";  // local queue + state; created if missing
+	std::string socket_path = "/run/facescan/facescand.sock";
+	std::string socket_group;                // group owning the socket (mode 0660); empty: ours
+	std::string camera_backend = "simulated"; // simulated | replay | libcamera | fake
+	int camera_count = 4;
+	std::string replay_dir;                  // capture set the replay backend plays back
+	std::string sim_scene = "default";       // scene the simulated backend renders
+	std::string serial_device = "fake";      // tty of the MCU, or "fake" (in-process MCU)
+	int serial_baud = 115200;
+	ButtonSource button_source = ButtonSource::mcu;
+	std::string gpio_chip = "gpiochip0";
+	int gpio_button_line = -1;               // -1: not wired
+	int gpio_led_line = -1;
+	int gpio_mcu_reset_line = -1;
+	std::string booth_patient_id = "walk-in"; // patient of a button press with nothing armed
+	int arm_timeout_ms = 120000;             // booth mode: an armed scan waits this long for a press
+	int mcu_timeout_ms = 2000;               // per MCU command / trigger report
+	int capture_timeout_ms = 5000;           // all frames of one trigger
+	int max_frame_skew_us = 1000;            // sensor timestamps of one trigger must agree
+	int projector_settle_us = 20000;         // firmware timing, sent at every arm
+	int exposure_us = 8000;
+	int texture_exposure_us = 8000;
+	std::string recon_backend = "pipeline";  // pipeline | fake
+	int min_free_mb = 64;                    // the share needs this much room or scans are spooled
+	int spool_retry_ms = 5000;               // how often spooled scans are offered to the share
+	int stage_timeout_ms = 300000;           // a stage running longer stops the watchdog pings
+	bool keep_captures = false;              // keep the raw capture set in the spool
+	int test_delay_write_ms = 0;             // fault tests only: pause between spooled files
+	int test_delay_deliver_ms = 0;           // fault tests only: pause between delivered files
+};
+
+/// Parses the text of a config file on top of the defaults. `name` labels the errors
+/// ("NAME:LINE: reason"). Unknown keys, duplicates, bad values and missing '=' are refused.
+Status parse_config(const std::string &text, const std::string &name, Config *ret_config);
+
+/// Reads and parses a config file. -ENOENT if it cannot be read.
+Status load_config(const std::string &path, Config *ret_config);
+
+/// The defaults as a commented config file (the reference for docs/daemon.md).
+std::string default_config_text();
+
+const char *mode_name(Mode m);
+
+} // namespace facescan::daemon

@@ -1,0 +1,982 @@
+#include "daemon/daemon.hpp"
+
+#include "common/version.hpp"
+#include "daemon/control.hpp"
+#include "daemon/log.hpp"
+#include "daemon/output.hpp"
+#include "daemon/patient_id.hpp"
+#include "daemon/spool.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <atomic>
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+#include <deque>
+#include <fcntl.h>
+#include <fstream>
+#include <grp.h>
+#include <mutex>
+#include <poll.h>
+#include <sstream>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <thread>
+#include <unistd.h>
+
+namespace facescan::daemon {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr int kMaxClients = 32;
+constexpr int kClientIdleMs = 30000;
+constexpr int kRecoverEveryMs = 1000;
+constexpr int kMcuPollMs = 50;
+
+double ms_since(Clock::time_point t)
+{
+	return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+}
+
+int ms_until(Clock::time_point t)
+{
+	auto d = std::chrono::duration_cast<std::chrono::milliseconds>(t - Clock::now()).count();
+	return d < 0 ? 0 : static_cast<int>(d);
+}
+
+// What the worker tells the loop.
+struct Msg {
+	enum class Kind { captured, reconstructed, finished, failed, delivered } kind;
+	double ms = 0;
+	std::string text;
+	bool hardware = false;  // failed: the booth itself is suspect (MCU, cameras)
+	json data;
+};
+
+struct Client {
+	int fd = -1;
+	LineReader reader;
+	std::string wait_scan;  // scan id whose progress this client follows
+	Clock::time_point last_active = Clock::now();
+	bool closing = false;
+};
+
+} // namespace
+
+struct Daemon::Impl {
+	Config cfg;
+	Backends be;
+	Spool spool;
+	StateMachine sm;
+	std::atomic<State> state_pub{State::idle};
+	std::function<void(const std::string &)> notify = [](const std::string &) {};
+	uint64_t watchdog_usec = 0;
+
+	int listen_fd = -1;
+	int wake_fd = -1;
+	std::atomic<bool> stop{false};
+	std::vector<std::unique_ptr<Client>> clients;
+
+	// the scan in flight (or the last one)
+	json current;          // the record `last` reports
+	json last;             // the last finished scan
+	std::string fault;     // why we are in error
+	bool hardware_fault = false;
+	Clock::time_point stage_start = Clock::now();
+	Clock::time_point arm_deadline;
+	Clock::time_point next_recover = Clock::now();
+	Clock::time_point next_delivery = Clock::now();
+	Clock::time_point next_mcu_poll = Clock::now();
+	Clock::time_point next_ping = Clock::now();
+	bool mcu_with_worker = false;
+
+	std::thread worker;
+	bool worker_running = false;
+	bool worker_is_delivery = false;
+	std::mutex msg_mu;
+	std::deque<Msg> msgs;
+
+	Impl(Config c, Backends b)
+		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb)
+	{
+	}
+
+	// ---- helpers ---------------------------------------------------------------------
+
+	void set_state_pub()
+	{
+		state_pub = sm.state();
+	}
+
+	void post(Msg m)
+	{
+		{
+			std::lock_guard<std::mutex> lock(msg_mu);
+			msgs.push_back(std::move(m));
+		}
+		uint64_t one = 1;
+		if (write(wake_fd, &one, sizeof one) < 0) {
+			// counter saturated: the loop is woken anyway
+		}
+	}
+
+	std::string sid() const
+	{
+		return current.value("scan_id", std::string("-"));
+	}
+
+	void progress(const std::string &stage, const std::string &text)
+	{
+		log(LOG_INFO, "scan %s: %s", sid().c_str(), text.c_str());
+		notify("STATUS=" + std::string(state_name(sm.state())) + ": scan " + sid() + " " + stage);
+		json ev = {{"event", "progress"}, {"scan_id", sid()}, {"state", state_name(sm.state())},
+			   {"message", text}};
+		for (auto &c : clients)
+			if (c->wait_scan == sid())
+				send_line(*c, ev);
+	}
+
+	void send_line(Client &c, const json &j)
+	{
+		std::string s = j.dump() + "\n";
+		// Replies are small; a client that does not read them is dropped, never waited for.
+		ssize_t n = ::send(c.fd, s.data(), s.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
+		if (n != static_cast<ssize_t>(s.size()))
+			c.closing = true;
+	}
+
+	void reply_error(Client &c, const std::string &code, const std::string &message)
+	{
+		send_line(c, {{"ok", false}, {"error", code}, {"message", message}});
+	}
+
+	json status_json() const
+	{
+		json j = {{"ok", true},
+			  {"state", state_name(sm.state())},
+			  {"mode", mode_name(cfg.mode)},
+			  {"version", version()},
+			  {"spool_pending", spool.pending()},
+			  {"mcu", be.mcu->is_open() ? "connected" : "disconnected"},
+			  {"firmware", be.mcu->is_open() ? be.mcu->firmware_version() : ""},
+			  {"camera_backend", be.cameras->backend_name()},
+			  {"recon_backend", be.recon->backend_name()}};
+		if (sm.busy()) {
+			j["scan_id"] = sid();
+			j["stage_elapsed_ms"] = static_cast<long>(ms_since(stage_start));
+		}
+		if (sm.state() == State::error)
+			j["fault"] = fault;
+		return j;
+	}
+
+	void save_last()
+	{
+		Status s = write_file_atomic(spool.state_dir(), "last.json", last.dump(1) + "\n");
+		if (!s.ok())
+			log(LOG_WARNING, "cannot save the last scan's record: %s", s.message().c_str());
+	}
+
+	void load_last()
+	{
+		std::ifstream f(spool.state_dir() + "/last.json");
+		if (!f)
+			return;
+		std::stringstream ss;
+		ss << f.rdbuf();
+		json j = json::parse(ss.str(), nullptr, false);
+		if (j.is_object())
+			last = j;
+	}
+
+	// ---- socket ----------------------------------------------------------------------
+
+	Status bind_socket()
+	{
+		const std::string &path = cfg.socket_path;
+		struct sockaddr_un addr = {};
+		addr.sun_family = AF_UNIX;
+		if (path.size() >= sizeof addr.sun_path)
+			return Status::error(ENAMETOOLONG, "socket path too long: " + path);
+		std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
+		int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+		if (fd < 0)
+			return Status::error(errno, std::string("socket: ") + std::strerror(errno));
+		// A socket file nobody answers on is left over from a crash; one that answers is a
+		// running daemon, which we must not steal from.
+		int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+		if (probe >= 0) {
+			if (connect(probe, reinterpret_cast<sockaddr *>(&addr), sizeof addr) == 0) {
+				::close(probe);
+				::close(fd);
+				return Status::error(EADDRINUSE, path + ": another facescand is running");
+			}
+			::close(probe);
+		}
+		unlink(path.c_str());
+		mode_t old = umask(0117);
+		int r = bind(fd, reinterpret_cast<sockaddr *>(&addr), sizeof addr);
+		int err = errno;
+		umask(old);
+		if (r < 0) {
+			::close(fd);
+			return Status::error(err, "bind " + path + ": " + std::strerror(err));
+		}
+		if (chmod(path.c_str(), 0660) < 0) {
+			err = errno;
+			::close(fd);
+			return Status::error(err, "chmod " + path + ": " + std::strerror(err));
+		}
+		if (!cfg.socket_group.empty()) {
+			struct group *g = getgrnam(cfg.socket_group.c_str());
+			if (!g || chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) < 0) {
+				::close(fd);
+				return Status::error(EPERM, "cannot give " + path + " to group " + cfg.socket_group);
+			}
+		}
+		if (listen(fd, 16) < 0) {
+			err = errno;
+			::close(fd);
+			return Status::error(err, std::string("listen: ") + std::strerror(err));
+		}
+		listen_fd = fd;
+		return Status();
+	}
+
+	void accept_clients()
+	{
+		for (;;) {
+			int fd = accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
+			if (fd < 0)
+				return;
+			if (static_cast<int>(clients.size()) >= kMaxClients) {
+				const char msg[] = "{\"ok\":false,\"error\":\"busy\",\"message\":\"too many clients\"}\n";
+				if (::send(fd, msg, sizeof msg - 1, MSG_NOSIGNAL | MSG_DONTWAIT) < 0) {
+					// the client is gone already
+				}
+				::close(fd);
+				continue;
+			}
+			auto c = std::make_unique<Client>();
+			c->fd = fd;
+			clients.push_back(std::move(c));
+		}
+	}
+
+	void read_client(Client &c)
+	{
+		char buf[1024];
+		for (;;) {
+			ssize_t n = recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
+			if (n == 0) {
+				c.closing = true;
+				break;
+			}
+			if (n < 0) {
+				if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
+					c.closing = true;
+				break;
+			}
+			c.last_active = Clock::now();
+			c.reader.feed(buf, static_cast<size_t>(n));
+			std::string line;
+			for (;;) {
+				LineReader::Result r = c.reader.next(&line);
+				if (r == LineReader::Result::need_more)
+					break;
+				if (r == LineReader::Result::too_large) {
+					log(LOG_WARNING, "control: request larger than %zu bytes refused", kMaxRequest);
+					reply_error(c, "too_large", "request larger than " + std::to_string(kMaxRequest) + " bytes");
+					c.closing = true;
+					return;
+				}
+				handle_line(c, line);
+				if (c.closing)
+					return;
+			}
+		}
+	}
+
+	void handle_line(Client &c, const std::string &line)
+	{
+		Request req;
+		Status s = parse_request(line, &req);
+		if (!s.ok()) {
+			log(LOG_WARNING, "control: malformed request refused: %s", s.message().c_str());
+			reply_error(c, "bad_request", s.message());
+			c.closing = true;
+			return;
+		}
+		switch (req.cmd) {
+		case Request::Cmd::status:
+			send_line(c, status_json());
+			break;
+		case Request::Cmd::last:
+			if (last.is_null())
+				send_line(c, {{"ok", true}, {"last", nullptr}});
+			else
+				send_line(c, {{"ok", true}, {"last", last}});
+			break;
+		case Request::Cmd::cancel:
+			if (sm.state() != State::armed) {
+				reply_error(c, "not_armed", std::string("nothing armed (state ") + state_name(sm.state()) + ")");
+				break;
+			}
+			be.mcu->abort();
+			sm.apply(Event::disarm);
+			set_state_pub();
+			progress("cancelled", "cancelled before the trigger");
+			finish_record("cancelled", "");
+			send_line(c, {{"ok", true}, {"state", state_name(sm.state())}});
+			break;
+		case Request::Cmd::button: {
+			Status b = be.mcu->simulate_button();
+			if (!b.ok())
+				reply_error(c, "unsupported", b.message());
+			else
+				send_line(c, {{"ok", true}});
+			break;
+		}
+		case Request::Cmd::scan:
+			handle_scan(c, req);
+			break;
+		}
+	}
+
+	void handle_scan(Client &c, const Request &req)
+	{
+		Status s = validate_patient_id(req.patient);
+		if (!s.ok()) {
+			log(LOG_WARNING, "control: scan refused: %s", s.message().c_str());
+			reply_error(c, "bad_patient_id", s.message());
+			return;
+		}
+		s = begin_scan(req.patient);
+		if (!s.ok()) {
+			reply_error(c, s.code() == -EBUSY ? "busy" : "unavailable", s.message());
+			return;
+		}
+		std::string id = sid();
+		if (req.wait)
+			c.wait_scan = id;
+		send_line(c, {{"ok", true}, {"scan_id", id}, {"state", state_name(sm.state())}});
+		if (cfg.mode == Mode::clinic)
+			fire();
+	}
+
+	// ---- scans -----------------------------------------------------------------------
+
+	Status begin_scan(const std::string &patient)
+	{
+		if (worker_running && worker_is_delivery)
+			join_worker_if_done(true);
+		Status s = sm.apply(Event::request);
+		if (!s.ok()) {
+			if (s.code() == -EAGAIN)
+				return Status::error(EAGAIN, "unavailable: " + fault);
+			if (sm.busy())
+				return Status::error(EBUSY, "busy: scan " + sid() + " is " + state_name(sm.state()));
+			return s;
+		}
+		set_state_pub();
+		auto now = std::chrono::system_clock::now();
+		const std::string id = new_scan_id();
+		current = {{"scan_id", id},
+			   {"patient_id", patient},
+			   {"base", output_base(now, id)},
+			   {"started_utc", utc_iso(now)},
+			   {"state", "armed"},
+			   {"stage_ms", json::object()}};
+		stage_start = Clock::now();
+		Timing t{cfg.projector_settle_us, cfg.exposure_us, cfg.texture_exposure_us};
+		s = be.mcu->arm(t);
+		if (!s.ok()) {
+			fail_scan("armed", "arm: " + s.message(), true);
+			return Status::error(EAGAIN, "unavailable: " + s.message());
+		}
+		arm_deadline = Clock::now() + std::chrono::milliseconds(cfg.arm_timeout_ms);
+		progress("armed", cfg.mode == Mode::booth ? "armed, waiting for the button" : "armed");
+		return Status();
+	}
+
+	void fire()
+	{
+		Status s = sm.apply(Event::fire);
+		if (!s.ok())
+			return;
+		set_state_pub();
+		stage_start = Clock::now();
+		current["state"] = "capturing";
+		progress("capturing", "[1/3] capturing");
+		mcu_with_worker = true;
+		start_worker(false);
+	}
+
+	void on_button()
+	{
+		if (cfg.mode != Mode::booth) {
+			log(LOG_INFO, "button pressed: ignored in clinic mode");
+			return;
+		}
+		if (sm.state() == State::idle) {
+			Status s = begin_scan(cfg.booth_patient_id);
+			if (!s.ok()) {
+				log(LOG_WARNING, "button pressed: %s", s.message().c_str());
+				return;
+			}
+		}
+		if (sm.state() == State::armed) {
+			fire();
+			return;
+		}
+		log(LOG_INFO, "button pressed: ignored, %s", state_name(sm.state()));
+	}
+
+	void finish_record(const std::string &outcome, const std::string &error)
+	{
+		current["state"] = outcome;
+		current["finished_utc"] = utc_iso(std::chrono::system_clock::now());
+		if (!error.empty())
+			current["error"] = error;
+		current.erase("base");
+		last = current;
+		save_last();
+		json done = {{"event", "done"}, {"ok", outcome == "delivered" || outcome == "spooled"}, {"scan", last}};
+		for (auto &c : clients)
+			if (c->wait_scan == last.value("scan_id", "")) {
+				send_line(*c, done);
+				c->wait_scan.clear();
+			}
+	}
+
+	void fail_scan(const std::string &stage, const std::string &why, bool hardware)
+	{
+		current["failed_stage"] = stage;
+		sm.apply(Event::failed);
+		set_state_pub();
+		fault = why;
+		hardware_fault = hardware;
+		log(LOG_ERR, "scan %s: failed while %s: %s", sid().c_str(), stage.c_str(), why.c_str());
+		notify("STATUS=error: scan " + sid() + " failed while " + stage);
+		finish_record("failed", why);
+		if (hardware) {
+			be.mcu->abort();
+		}
+		next_recover = Clock::now();
+	}
+
+	// ---- worker ----------------------------------------------------------------------
+
+	void start_worker(bool delivery_only)
+	{
+		worker_running = true;
+		worker_is_delivery = delivery_only;
+		json rec = current;
+		if (delivery_only)
+			worker = std::thread([this] { deliver_job(); });
+		else
+			worker = std::thread([this, rec] { scan_job(rec); });
+	}
+
+	void join_worker_if_done(bool wait)
+	{
+		if (!worker_running)
+			return;
+		if (!wait)
+			return;
+		worker.join();
+		worker_running = false;
+	}
+
+	void deliver_job()
+	{
+		std::vector<Delivered> out;
+		Status s = spool.deliver(&out, cfg.test_delay_deliver_ms);
+		Msg m{Msg::Kind::delivered, 0, "", false, json::array()};
+		m.data = json::array();
+		for (const Delivered &d : out)
+			m.data.push_back({{"scan_id", d.scan_id}, {"paths", d.paths}});
+		if (!s.ok())
+			m.text = s.message();
+		post(std::move(m));
+	}
+
+	void scan_job(json rec)
+	{
+		const std::string id = rec["scan_id"];
+		// capture
+		auto t0 = Clock::now();
+		Capture cap;
+		Status s = be.cameras->prepare();
+		if (!s.ok()) {
+			post({Msg::Kind::failed, 0, "cameras: " + s.message(), true, {{"stage", "capturing"}}});
+			return;
+		}
+		TriggerReport report;
+		s = be.mcu->fire(cfg.mcu_timeout_ms, &report);
+		if (!s.ok()) {
+			post({Msg::Kind::failed, 0, "MCU: " + s.message(), true, {{"stage", "capturing"}}});
+			return;
+		}
+		s = be.cameras->collect(report, cfg.capture_timeout_ms, &cap);
+		if (s.ok())
+			s = check_capture(cap, be.cameras->count(), cfg.max_frame_skew_us);
+		if (!s.ok()) {
+			post({Msg::Kind::failed, 0, "cameras: " + s.message(), true, {{"stage", "capturing"}}});
+			return;
+		}
+		cap.report = report;
+		double capture_ms = ms_since(t0);
+		post({Msg::Kind::captured, capture_ms,
+		      "[1/3] captured " + std::to_string(cap.frames.size()) + " frames of trigger " +
+			      std::to_string(report.sequence) + " in " + std::to_string(static_cast<long>(capture_ms)) + " ms",
+		      false, {{"trigger_report", report.raw}}});
+		if (cfg.keep_captures)
+			keep_capture(rec["base"], cap);
+
+		// reconstruction
+		auto t1 = Clock::now();
+		ReconOutput out;
+		s = be.recon->run(cap, &out);
+		if (!s.ok()) {
+			post({Msg::Kind::failed, 0, "reconstruction: " + s.message(), false, {{"stage", "reconstructing"}}});
+			return;
+		}
+		double recon_ms = ms_since(t1);
+		json recon_stages = json::object();
+		for (const auto &st : out.stage_ms)
+			recon_stages[st.first] = st.second;
+		post({Msg::Kind::reconstructed, recon_ms,
+		      "[2/3] reconstructed " + std::to_string(out.vertices) + " vertices in " +
+			      std::to_string(static_cast<long>(recon_ms)) + " ms",
+		      false, {{"vertices", out.vertices}, {"faces", out.faces}, {"recon_stage_ms", recon_stages}}});
+
+		// writing: spool (the commit point), then the share
+		auto t2 = Clock::now();
+		const std::string base = rec["base"];
+		json meta = {{"scan_id", id},
+			     {"patient_id", rec["patient_id"]},
+			     {"started_utc", rec["started_utc"]},
+			     {"software_version", version()},
+			     {"mode", mode_name(cfg.mode)},
+			     {"stage_ms", {{"capture", capture_ms}, {"reconstruct", recon_ms}}},
+			     {"recon_stage_ms", recon_stages},
+			     {"trigger_report", report.raw},
+			     {"firmware", be.mcu->firmware_version()},
+			     {"calibration_id", cap.calibration_id},
+			     {"camera_backend", be.cameras->backend_name()},
+			     {"cameras", cap.meta},
+			     {"recon_backend", be.recon->backend_name()},
+			     {"vertices", out.vertices},
+			     {"faces", out.faces},
+			     {"quality", out.quality},
+			     {"files", {{"mesh", base + ".drc"}, {"texture", base + ".png"}}}};
+		std::vector<SpoolFile> files = {{base + ".drc", out.drc}, {base + ".png", out.png},
+						{base + ".json", meta.dump(1) + "\n"}};
+		s = spool.put(base, id, rec["patient_id"], files, cfg.test_delay_write_ms);
+		if (!s.ok()) {
+			post({Msg::Kind::failed, 0, "spool: " + s.message(), false, {{"stage", "writing"}}});
+			return;
+		}
+		std::vector<Delivered> delivered;
+		Status d = spool.deliver(&delivered, cfg.test_delay_deliver_ms);
+		bool landed = false;
+		json paths = json::array();
+		for (const Delivered &x : delivered)
+			if (x.scan_id == id) {
+				landed = true;
+				paths = x.paths;
+			}
+		json data = {{"write_ms", ms_since(t2)}, {"outcome", landed ? "delivered" : "spooled"}, {"files", paths}};
+		if (!landed)
+			data["spool_reason"] = d.ok() ? "an older spooled scan is ahead" : d.message();
+		post({Msg::Kind::finished, ms_since(t2), "", false, data});
+	}
+
+	void keep_capture(const std::string &base, const Capture &cap)
+	{
+		const std::string dir = cfg.spool_dir + "/captures";
+		mkdir(dir.c_str(), 0750);
+		const std::string set = dir + "/" + base;
+		if (mkdir(set.c_str(), 0750) < 0 && errno != EEXIST)
+			return;
+		for (const Frame &f : cap.frames)
+			cv::imwrite(set + "/cam" + std::to_string(f.camera) + (f.texture ? "_texture" : "") + ".png", f.image);
+		json meta = {{"scan_id", base.substr(base.rfind('_') + 1)}, {"trigger_report", cap.report.raw}};
+		write_file_atomic(set, "capture.json", meta.dump(1) + "\n");
+	}
+
+	void drain_messages()
+	{
+		uint64_t n;
+		if (read(wake_fd, &n, sizeof n) < 0) {
+			// EAGAIN: nothing new
+		}
+		std::deque<Msg> batch;
+		{
+			std::lock_guard<std::mutex> lock(msg_mu);
+			batch.swap(msgs);
+		}
+		for (Msg &m : batch)
+			handle_msg(m);
+	}
+
+	void handle_msg(Msg &m)
+	{
+		switch (m.kind) {
+		case Msg::Kind::captured:
+			mcu_with_worker = false;
+			sm.apply(Event::captured);
+			set_state_pub();
+			stage_start = Clock::now();
+			current["stage_ms"]["capture"] = m.ms;
+			current["trigger_report"] = m.data["trigger_report"];
+			current["state"] = "reconstructing";
+			progress("reconstructing", m.text + "; [2/3] reconstructing");
+			break;
+		case Msg::Kind::reconstructed:
+			sm.apply(Event::reconstructed);
+			set_state_pub();
+			stage_start = Clock::now();
+			current["stage_ms"]["reconstruct"] = m.ms;
+			current["vertices"] = m.data["vertices"];
+			current["faces"] = m.data["faces"];
+			current["recon_stage_ms"] = m.data["recon_stage_ms"];
+			current["state"] = "writing";
+			progress("writing", m.text + "; [3/3] writing");
+			break;
+		case Msg::Kind::finished: {
+			join_worker_if_done(true);
+			sm.apply(Event::written);
+			set_state_pub();
+			current["stage_ms"]["write"] = m.data["write_ms"];
+			current["files"] = m.data["files"];
+			const std::string outcome = m.data["outcome"];
+			double total = 0;
+			for (auto &v : current["stage_ms"])
+				total += v.get<double>();
+			if (outcome == "delivered") {
+				log(LOG_INFO, "scan %s: [3/3] delivered to the share in %ld ms (total %ld ms)",
+				    sid().c_str(), static_cast<long>(m.ms), static_cast<long>(total));
+			} else {
+				current["spool_reason"] = m.data["spool_reason"];
+				log(LOG_WARNING, "scan %s: [3/3] spooled, the share cannot take it yet (%s); total %ld ms",
+				    sid().c_str(), m.data.value("spool_reason", "").c_str(), static_cast<long>(total));
+				next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
+			}
+			notify("STATUS=idle: last scan " + sid() + " " + outcome);
+			finish_record(outcome, "");
+			break;
+		}
+		case Msg::Kind::failed:
+			join_worker_if_done(true);
+			mcu_with_worker = false;
+			fail_scan(m.data.value("stage", "?"), m.text, m.hardware);
+			try_recover();
+			break;
+		case Msg::Kind::delivered:
+			// A scan may have started after joining this job already (begin_scan).
+			if (worker_is_delivery)
+				join_worker_if_done(true);
+			for (const auto &d : m.data) {
+				const std::string id = d["scan_id"];
+				log(LOG_INFO, "scan %s: spooled scan delivered to the share", id.c_str());
+				if (last.value("scan_id", "") == id) {
+					last["state"] = "delivered";
+					last["files"] = d["paths"];
+					last.erase("spool_reason");
+					save_last();
+				}
+			}
+			if (!m.text.empty())
+				next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
+			break;
+		}
+	}
+
+	// ---- recovery and timers ----------------------------------------------------------
+
+	void try_recover()
+	{
+		if (sm.state() != State::error || worker_running)
+			return;
+		next_recover = Clock::now() + std::chrono::milliseconds(kRecoverEveryMs);
+		if (!be.mcu->is_open()) {
+			Status s = be.mcu->open();
+			if (!s.ok()) {
+				fault = "MCU: " + s.message();
+				return;
+			}
+			log(LOG_INFO, "MCU connected: %s", be.mcu->firmware_version().c_str());
+		}
+		if (hardware_fault) {
+			Status s = be.cameras->open();
+			if (!s.ok()) {
+				fault = "cameras: " + s.message();
+				return;
+			}
+		}
+		sm.apply(Event::recovered);
+		set_state_pub();
+		fault.clear();
+		hardware_fault = false;
+		log(LOG_INFO, "recovered: idle");
+		notify("STATUS=idle");
+	}
+
+	void poll_mcu()
+	{
+		if (mcu_with_worker || sm.state() == State::error)
+			return;
+		std::vector<McuEvent> events;
+		be.mcu->poll_events(&events);
+		if (!be.mcu->is_open() && events.empty() &&
+		    (sm.state() == State::idle || sm.state() == State::armed))
+			events.push_back({McuEvent::Type::disconnected, "link closed"});
+		for (const McuEvent &e : events) {
+			switch (e.type) {
+			case McuEvent::Type::button:
+				on_button();
+				break;
+			case McuEvent::Type::fault:
+				log(LOG_WARNING, "MCU reports a fault: %s", e.detail.c_str());
+				break;
+			case McuEvent::Type::disconnected:
+				log(LOG_ERR, "MCU link lost: %s", e.detail.c_str());
+				be.mcu->close();
+				if (sm.state() == State::armed) {
+					fail_scan("armed", "MCU link lost", true);
+				} else if (sm.apply(Event::fault).ok()) {
+					set_state_pub();
+					fault = "MCU link lost";
+					hardware_fault = false;
+					notify("STATUS=error: MCU link lost");
+				}
+				break;
+			}
+		}
+	}
+
+	void timers()
+	{
+		auto now = Clock::now();
+		if (sm.state() == State::armed && now >= arm_deadline) {
+			be.mcu->abort();
+			sm.apply(Event::disarm);
+			set_state_pub();
+			log(LOG_INFO, "scan %s: no button press within %d ms, disarmed", sid().c_str(), cfg.arm_timeout_ms);
+			finish_record("cancelled", "no button press in time");
+		}
+		if (sm.state() == State::error && now >= next_recover)
+			try_recover();
+		if (!sm.busy() && !worker_running && now >= next_delivery && spool.pending() > 0) {
+			next_delivery = now + std::chrono::milliseconds(cfg.spool_retry_ms);
+			start_worker(true);
+		}
+		if (!mcu_with_worker && now >= next_mcu_poll) {
+			next_mcu_poll = now + std::chrono::milliseconds(kMcuPollMs);
+			poll_mcu();
+		}
+		if (watchdog_usec && now >= next_ping) {
+			next_ping = now + std::chrono::microseconds(watchdog_usec / 2);
+			// A stage that overruns means a hung worker: stop pinging and let systemd restart us.
+			if (!sm.busy() || ms_since(stage_start) < cfg.stage_timeout_ms)
+				notify("WATCHDOG=1");
+			else
+				log(LOG_CRIT, "scan %s: stage %s overran %d ms, watchdog pings stopped", sid().c_str(),
+				    state_name(sm.state()), cfg.stage_timeout_ms);
+		}
+		for (auto &c : clients)
+			if (c->wait_scan.empty() && ms_since(c->last_active) > kClientIdleMs)
+				c->closing = true;
+	}
+
+	int next_timeout() const
+	{
+		auto now = Clock::now();
+		auto soonest = now + std::chrono::milliseconds(1000);
+		auto consider = [&](Clock::time_point t) {
+			if (t < soonest)
+				soonest = t;
+		};
+		if (sm.state() == State::armed)
+			consider(arm_deadline);
+		if (sm.state() == State::error)
+			consider(next_recover);
+		if (!sm.busy() && !worker_running && spool.pending() > 0)
+			consider(next_delivery);
+		if (!mcu_with_worker && be.mcu->event_fd() < 0)
+			consider(next_mcu_poll);
+		if (watchdog_usec)
+			consider(next_ping);
+		return ms_until(soonest);
+	}
+
+	Status run_once()
+	{
+		std::vector<pollfd> fds;
+		fds.push_back({wake_fd, POLLIN, 0});
+		fds.push_back({listen_fd, POLLIN, 0});
+		int mcu_fd = mcu_with_worker ? -1 : be.mcu->event_fd();
+		fds.push_back({mcu_fd, POLLIN, 0});
+		for (auto &c : clients)
+			fds.push_back({c->fd, POLLIN, 0});
+		int r = poll(fds.data(), fds.size(), next_timeout());
+		if (r < 0 && errno != EINTR)
+			return Status::error(errno, std::string("poll: ") + std::strerror(errno));
+		if (r > 0) {
+			if (fds[0].revents)
+				drain_messages();
+			if (fds[2].revents)
+				next_mcu_poll = Clock::now();
+			if (fds[1].revents)
+				accept_clients();
+			for (size_t i = 3; i < fds.size() && i - 3 < clients.size(); i++)
+				if (fds[i].revents)
+					read_client(*clients[i - 3]);
+		}
+		timers();
+		for (auto it = clients.begin(); it != clients.end();) {
+			if ((*it)->closing) {
+				::close((*it)->fd);
+				it = clients.erase(it);
+			} else {
+				++it;
+			}
+		}
+		return Status();
+	}
+};
+
+Daemon::Daemon(Config config, Backends backends) : impl_(std::make_unique<Impl>(std::move(config), std::move(backends)))
+{
+}
+
+Daemon::~Daemon()
+{
+	Impl &d = *impl_;
+	if (d.worker_running)
+		d.worker.join();
+	for (auto &c : d.clients)
+		::close(c->fd);
+	if (d.listen_fd >= 0) {
+		::close(d.listen_fd);
+		unlink(d.cfg.socket_path.c_str());
+	}
+	if (d.wake_fd >= 0)
+		::close(d.wake_fd);
+	if (d.be.mcu)
+		d.be.mcu->close();
+}
+
+void Daemon::set_notify(std::function<void(const std::string &)> notify)
+{
+	impl_->notify = std::move(notify);
+}
+
+void Daemon::set_watchdog_usec(uint64_t usec)
+{
+	impl_->watchdog_usec = usec;
+}
+
+State Daemon::state() const
+{
+	return impl_->state_pub.load();
+}
+
+void Daemon::request_stop()
+{
+	impl_->stop = true;
+	uint64_t one = 1;
+	if (impl_->wake_fd >= 0 && write(impl_->wake_fd, &one, sizeof one) < 0) {
+		// saturated: a wake-up is pending
+	}
+}
+
+Status Daemon::start()
+{
+	Impl &d = *impl_;
+	if (!d.be.mcu || !d.be.cameras || !d.be.recon)
+		return Status::error(EINVAL, "facescand: a backend is missing");
+	d.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+	if (d.wake_fd < 0)
+		return Status::error(errno, std::string("eventfd: ") + std::strerror(errno));
+	Status s = d.spool.init();
+	if (!s.ok())
+		return s;
+	d.load_last();
+	std::vector<std::string> failed;
+	s = d.spool.recover(&failed);
+	if (!s.ok())
+		return s;
+	for (const std::string &id : failed) {
+		log(LOG_ERR, "scan %s: interrupted while writing (daemon stopped); reported failed", id.c_str());
+		if (d.last.value("scan_id", "") != id || d.last.value("state", "") != "failed") {
+			d.last = {{"scan_id", id},
+				  {"state", "failed"},
+				  {"failed_stage", "writing"},
+				  {"error", "interrupted while writing: the daemon stopped; scan again"}};
+			d.save_last();
+		}
+	}
+	size_t pending = d.spool.pending();
+	if (pending)
+		log(LOG_INFO, "%zu spooled scan(s) waiting for the share", pending);
+	s = d.be.cameras->open();
+	if (!s.ok()) {
+		log(LOG_ERR, "cameras: %s", s.message().c_str());
+		d.sm.apply(Event::fault);
+		d.fault = "cameras: " + s.message();
+		d.hardware_fault = true;
+	}
+	Status m = d.be.mcu->open();
+	if (!m.ok()) {
+		log(LOG_ERR, "MCU: %s", m.message().c_str());
+		if (d.sm.state() != State::error)
+			d.sm.apply(Event::fault);
+		d.fault = "MCU: " + m.message();
+	} else {
+		log(LOG_INFO, "MCU connected: %s", d.be.mcu->firmware_version().c_str());
+	}
+	d.set_state_pub();
+	s = d.bind_socket();
+	if (!s.ok())
+		return s;
+	log(LOG_INFO, "facescand %s serving %s (%s mode, cameras: %s, reconstruction: %s)", version(),
+	    d.cfg.socket_path.c_str(), mode_name(d.cfg.mode), d.be.cameras->backend_name().c_str(),
+	    d.be.recon->backend_name().c_str());
+	return Status();
+}
+
+Status Daemon::run()
+{
+	Impl &d = *impl_;
+	d.notify("READY=1");
+	d.notify(std::string("STATUS=") + state_name(d.sm.state()));
+	while (!d.stop) {
+		Status s = d.run_once();
+		if (!s.ok())
+			return s;
+	}
+	d.notify("STOPPING=1");
+	if (d.worker_running) {
+		log(LOG_INFO, "stopping: waiting for the running stage to finish");
+		// Let the worker finish and record its outcome so nothing is left half-written.
+		while (d.worker_running) {
+			pollfd p = {d.wake_fd, POLLIN, 0};
+			poll(&p, 1, 1000);
+			d.drain_messages();
+		}
+	}
+	log(LOG_INFO, "stopped");
+	return Status();
+}
+
+} // namespace facescan::daemon

@@ -1,0 +1,401 @@
+#include "daemon/fake_backends.hpp"
+
+#include <draco/compression/decode.h>
+#include <draco/compression/encode.h>
+#include <draco/mesh/triangle_soup_mesh_builder.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <sys/eventfd.h>
+#include <thread>
+#include <unistd.h>
+
+namespace facescan::daemon {
+
+// ---- FakeMcu -------------------------------------------------------------------------------
+
+FakeMcu::FakeMcu() : efd_(eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC))
+{
+}
+
+FakeMcu::~FakeMcu()
+{
+	if (efd_ >= 0)
+		::close(efd_);
+}
+
+void FakeMcu::kick()
+{
+	uint64_t one = 1;
+	if (efd_ >= 0 && write(efd_, &one, sizeof one) < 0) {
+		// the counter is saturated: a wake-up is pending anyway
+	}
+}
+
+Status FakeMcu::open()
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	if (!plugged_)
+		return Status::error(ENODEV, "fake MCU: unplugged");
+	open_ = true;
+	lost_ = false;
+	armed_ = false;
+	return Status();
+}
+
+void FakeMcu::close()
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	open_ = false;
+	armed_ = false;
+}
+
+bool FakeMcu::is_open() const
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	return open_;
+}
+
+std::string FakeMcu::firmware_version() const
+{
+	return "fake-mcu 1.0";
+}
+
+Status FakeMcu::arm(const Timing &timing)
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	if (!open_)
+		return Status::error(EIO, "fake MCU: link is down");
+	timing_ = timing;
+	armed_ = true;
+	return Status();
+}
+
+Status FakeMcu::fire(int timeout_ms, TriggerReport *ret_report)
+{
+	std::unique_lock<std::mutex> lock(mu_);
+	if (!open_)
+		return Status::error(EIO, "fake MCU: link is down");
+	if (!armed_)
+		return Status::error(EPROTO, "fake MCU: fire without arm");
+	if (unplug_on_fire_) {
+		unplug_on_fire_ = false;
+		plugged_ = false;
+		open_ = false;
+		lost_ = true;
+		lock.unlock();
+		// The report never comes: the caller waits out its timeout, as with a real link.
+		std::this_thread::sleep_for(std::chrono::milliseconds(std::min(timeout_ms, 50)));
+		kick();
+		return Status::error(EIO, "fake MCU: link lost during the sequence");
+	}
+	armed_ = false;
+	fired_++;
+	TriggerReport r;
+	r.sequence = ++sequence_;
+	r.tick_hz = 1000000;
+	uint64_t t0 = 1000 + static_cast<uint64_t>(timing_.projector_settle_us);
+	uint64_t t1 = t0 + static_cast<uint64_t>(timing_.exposure_us) + 1000;
+	for (int i = 0; i < 4; i++)
+		r.edge_ticks.push_back(t0);
+	for (int i = 0; i < 4; i++)
+		r.edge_ticks.push_back(t1);
+	r.raw = {{"sequence", r.sequence},
+		 {"tick_hz", r.tick_hz},
+		 {"pattern_edge_ticks", {t0, t0, t0, t0}},
+		 {"texture_edge_ticks", {t1, t1, t1, t1}},
+		 {"firmware", "fake-mcu 1.0"}};
+	*ret_report = r;
+	return Status();
+}
+
+Status FakeMcu::abort()
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	armed_ = false;
+	return Status();
+}
+
+int FakeMcu::event_fd() const
+{
+	return efd_;
+}
+
+Status FakeMcu::poll_events(std::vector<McuEvent> *ret_events)
+{
+	uint64_t n;
+	if (read(efd_, &n, sizeof n) < 0) {
+		// nothing pending (EAGAIN)
+	}
+	std::lock_guard<std::mutex> lock(mu_);
+	ret_events->clear();
+	if (lost_) {
+		lost_ = false;
+		ret_events->push_back({McuEvent::Type::disconnected, "fake MCU unplugged"});
+	}
+	if (open_)
+		for (; presses_ > 0; presses_--)
+			ret_events->push_back({McuEvent::Type::button, ""});
+	presses_ = 0;
+	return Status();
+}
+
+Status FakeMcu::simulate_button()
+{
+	press_button();
+	return Status();
+}
+
+void FakeMcu::press_button()
+{
+	{
+		std::lock_guard<std::mutex> lock(mu_);
+		presses_++;
+	}
+	kick();
+}
+
+void FakeMcu::unplug()
+{
+	{
+		std::lock_guard<std::mutex> lock(mu_);
+		plugged_ = false;
+		if (open_)
+			lost_ = true;
+		open_ = false;
+	}
+	kick();
+}
+
+void FakeMcu::replug()
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	plugged_ = true;
+}
+
+void FakeMcu::unplug_on_fire()
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	unplug_on_fire_ = true;
+}
+
+int FakeMcu::fired() const
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	return fired_;
+}
+
+Timing FakeMcu::last_timing() const
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	return timing_;
+}
+
+// ---- FakeCameras ---------------------------------------------------------------------------
+
+FakeCameras::FakeCameras(int count, int width, int height) : count_(count), width_(width), height_(height)
+{
+}
+
+Status FakeCameras::open()
+{
+	return Status();
+}
+
+Status FakeCameras::prepare()
+{
+	return Status();
+}
+
+Status FakeCameras::collect(const TriggerReport &report, int timeout_ms, Capture *ret_capture)
+{
+	if (timeout_.exchange(false)) {
+		std::this_thread::sleep_for(std::chrono::milliseconds(std::min(timeout_ms, 100)));
+		return Status::error(ETIMEDOUT, "camera " + std::to_string(count_ - 1) +
+							": no frame within " + std::to_string(timeout_ms) + " ms");
+	}
+	bool mix = mix_.exchange(false);
+	Capture c;
+	c.report = report;
+	c.calibration_id = "fake-calibration";
+	for (int texture = 0; texture < 2; texture++)
+		for (int i = 0; i < count_; i++) {
+			Frame f;
+			f.camera = i;
+			f.texture = texture;
+			f.trigger = report.sequence;
+			if (mix && i == 1 && !texture)
+				f.trigger = report.sequence + 1;
+			f.timestamp_ns = static_cast<int64_t>(report.sequence) * 1000000000LL + texture * 50000000LL;
+			f.image = cv::Mat(height_, width_, CV_8UC3, cv::Scalar(40 + 50 * i, 90, texture ? 200 : 120));
+			c.frames.push_back(f);
+		}
+	c.meta = {{"backend", "fake"}, {"width", width_}, {"height", height_}};
+	collected_++;
+	*ret_capture = std::move(c);
+	return Status();
+}
+
+void FakeCameras::fail_next_collect_with_timeout()
+{
+	timeout_ = true;
+}
+
+void FakeCameras::mix_next_trigger()
+{
+	mix_ = true;
+}
+
+// ---- check_capture -------------------------------------------------------------------------
+
+Status check_capture(const Capture &capture, int cameras, int max_skew_us)
+{
+	for (int texture = 0; texture < 2; texture++) {
+		std::vector<const Frame *> seen(static_cast<size_t>(cameras), nullptr);
+		int n = 0;
+		for (const Frame &f : capture.frames) {
+			if (f.texture != static_cast<bool>(texture))
+				continue;
+			if (f.camera < 0 || f.camera >= cameras)
+				return Status::error(EPROTO, "frame from unknown camera " + std::to_string(f.camera));
+			if (seen[static_cast<size_t>(f.camera)])
+				return Status::error(EPROTO, "camera " + std::to_string(f.camera) +
+								     " delivered two frames for one trigger");
+			if (f.trigger != capture.report.sequence)
+				return Status::error(EPROTO, "camera " + std::to_string(f.camera) + ": frame of trigger " +
+								     std::to_string(f.trigger) + ", expected " +
+								     std::to_string(capture.report.sequence));
+			if (f.image.empty())
+				return Status::error(EPROTO, "camera " + std::to_string(f.camera) + ": empty frame");
+			seen[static_cast<size_t>(f.camera)] = &f;
+			n++;
+		}
+		if (n == 0 && texture)
+			continue; // texture frames are optional
+		for (int i = 0; i < cameras; i++)
+			if (!seen[static_cast<size_t>(i)])
+				return Status::error(EPROTO, "camera " + std::to_string(i) + ": no " +
+								     (texture ? "texture" : "pattern") + " frame");
+		int64_t lo = seen[0]->timestamp_ns, hi = lo;
+		for (const Frame *f : seen) {
+			lo = std::min(lo, f->timestamp_ns);
+			hi = std::max(hi, f->timestamp_ns);
+		}
+		if (hi - lo > static_cast<int64_t>(max_skew_us) * 1000)
+			return Status::error(EPROTO, std::string(texture ? "texture" : "pattern") +
+							     " frames " + std::to_string((hi - lo) / 1000) +
+							     " us apart (limit " + std::to_string(max_skew_us) + " us)");
+	}
+	return Status();
+}
+
+// ---- Draco ---------------------------------------------------------------------------------
+
+Status encode_draco(const std::vector<float> &xyz, const std::vector<int> &triangles, std::string *ret_bytes)
+{
+	if (triangles.empty() || triangles.size() % 3 || xyz.size() % 3)
+		return Status::error(EINVAL, "draco: empty or ragged mesh");
+	const int nv = static_cast<int>(xyz.size() / 3);
+	draco::TriangleSoupMeshBuilder b;
+	b.Start(static_cast<int>(triangles.size() / 3));
+	const int pos = b.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+	for (size_t f = 0; f < triangles.size() / 3; f++) {
+		const float *v[3];
+		for (int k = 0; k < 3; k++) {
+			int idx = triangles[3 * f + static_cast<size_t>(k)];
+			if (idx < 0 || idx >= nv)
+				return Status::error(EINVAL, "draco: vertex index out of range");
+			v[k] = &xyz[3 * static_cast<size_t>(idx)];
+		}
+		b.SetAttributeValuesForFace(pos, draco::FaceIndex(static_cast<uint32_t>(f)), v[0], v[1], v[2]);
+	}
+	std::unique_ptr<draco::Mesh> mesh = b.Finalize();
+	if (!mesh)
+		return Status::error(EINVAL, "draco: mesh builder failed");
+	draco::Encoder enc;
+	enc.SetAttributeQuantization(draco::GeometryAttribute::POSITION, 14);
+	enc.SetSpeedOptions(5, 5);
+	draco::EncoderBuffer buf;
+	draco::Status s = enc.EncodeMeshToBuffer(*mesh, &buf);
+	if (!s.ok())
+		return Status::error(EIO, std::string("draco: ") + s.error_msg());
+	ret_bytes->assign(buf.data(), buf.size());
+	return Status();
+}
+
+Status decode_draco_counts(const std::string &bytes, long *ret_vertices, long *ret_faces)
+{
+	draco::DecoderBuffer db;
+	db.Init(bytes.data(), bytes.size());
+	draco::Decoder dec;
+	auto r = dec.DecodeMeshFromBuffer(&db);
+	if (!r.ok())
+		return Status::error(EPROTO, std::string("draco: ") + r.status().error_msg());
+	*ret_vertices = static_cast<long>(r.value()->num_points());
+	*ret_faces = static_cast<long>(r.value()->num_faces());
+	return Status();
+}
+
+// ---- FakeReconstructor ---------------------------------------------------------------------
+
+Status FakeReconstructor::run(const Capture &capture, ReconOutput *ret_output)
+{
+	if (fail_.exchange(false))
+		return Status::error(EIO, "fake reconstruction failed on request");
+	auto t0 = std::chrono::steady_clock::now();
+	const int rings = 24, segments = 48;
+	const float r = 80.0f;
+	std::vector<float> xyz;
+	std::vector<int> tri;
+	xyz.insert(xyz.end(), {0.0f, 0.0f, r});
+	for (int i = 1; i <= rings; i++) {
+		float th = static_cast<float>(M_PI / 2) * static_cast<float>(i) / rings;
+		for (int j = 0; j < segments; j++) {
+			float ph = 2.0f * static_cast<float>(M_PI) * static_cast<float>(j) / segments;
+			xyz.insert(xyz.end(), {r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph),
+					       r * std::cos(th)});
+		}
+	}
+	auto at = [&](int ring, int j) { return ring == 0 ? 0 : 1 + (ring - 1) * segments + (j % segments); };
+	for (int i = 0; i < rings; i++)
+		for (int j = 0; j < segments; j++) {
+			if (i == 0) {
+				tri.insert(tri.end(), {0, at(1, j), at(1, j + 1)});
+				continue;
+			}
+			tri.insert(tri.end(), {at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+			tri.insert(tri.end(), {at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+		}
+	auto t1 = std::chrono::steady_clock::now();
+	ReconOutput out;
+	Status s = encode_draco(xyz, tri, &out.drc);
+	if (!s.ok())
+		return s;
+	auto t2 = std::chrono::steady_clock::now();
+	const Frame *tex = nullptr;
+	for (const Frame &f : capture.frames)
+		if (f.camera == 0 && (!tex || f.texture))
+			tex = &f;
+	cv::Mat img = tex ? tex->image : cv::Mat(16, 16, CV_8UC3, cv::Scalar(128, 128, 128));
+	std::vector<uchar> png;
+	if (!cv::imencode(".png", img, png))
+		return Status::error(EIO, "texture: PNG encoding failed");
+	out.png.assign(png.begin(), png.end());
+	auto t3 = std::chrono::steady_clock::now();
+	auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+	out.vertices = static_cast<long>(xyz.size() / 3);
+	out.faces = static_cast<long>(tri.size() / 3);
+	out.stage_ms = {{"mesh", ms(t0, t1)}, {"draco", ms(t1, t2)}, {"texture", ms(t2, t3)}};
+	out.quality = {{"note", "fake reconstruction: a fixed hemisphere, no accuracy figure"}};
+	*ret_output = std::move(out);
+	return Status();
+}
+
+void FakeReconstructor::fail_next_run()
+{
+	fail_ = true;
+}
+
+} // namespace facescan::daemon

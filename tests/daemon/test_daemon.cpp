@@ -1,0 +1,424 @@
+// facescand in-process with the fake booth: scans over the socket and by button, one scan at a
+// time, socket robustness, and the faults (MCU unplugged mid-scan, camera timeout, frames from
+// different triggers, a failing reconstruction) with recovery. Log lines are captured to check
+// that no patient data reaches them.
+#include "daemon/client.hpp"
+#include "daemon/daemon.hpp"
+#include "daemon/fake_backends.hpp"
+#include "daemon/log.hpp"
+
+#include <chrono>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/un.h>
+#include <unistd.h>
+#include <thread>
+#include <vector>
+
+// cmocka last: its macros (fail, ...) clash with the standard library
+#include <cstdarg>
+#include <cstddef>
+#include <setjmp.h>
+extern "C" {
+#include <cmocka.h>
+}
+
+using namespace facescan::daemon;
+using json = nlohmann::json;
+
+namespace {
+
+std::mutex log_mu;
+std::vector<std::string> log_lines;
+
+struct Rig {
+	std::string dir;
+	Config cfg;
+	FakeMcu *mcu = nullptr;
+	FakeCameras *cams = nullptr;
+	FakeReconstructor *recon = nullptr;
+	std::unique_ptr<Daemon> d;
+	std::thread loop;
+
+	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0)
+	{
+		char t[] = "/tmp/facescand-test-XXXXXX";
+		assert_non_null(mkdtemp(t));
+		dir = t;
+		mkdir((dir + "/share").c_str(), 0755);
+		cfg.mode = mode;
+		cfg.share_dir = dir + "/share";
+		cfg.spool_dir = dir + "/spool";
+		cfg.socket_path = dir + "/sock";
+		cfg.serial_device = "fake";
+		cfg.camera_backend = "fake";
+		cfg.recon_backend = "fake";
+		cfg.min_free_mb = 0;
+		cfg.spool_retry_ms = 100;
+		cfg.mcu_timeout_ms = 200;
+		cfg.capture_timeout_ms = 200;
+		cfg.arm_timeout_ms = 1000;
+		cfg.test_delay_write_ms = delay_write_ms;
+		Backends b;
+		auto m = std::make_unique<FakeMcu>();
+		auto c = std::make_unique<FakeCameras>(4);
+		auto r = std::make_unique<FakeReconstructor>();
+		mcu = m.get();
+		cams = c.get();
+		recon = r.get();
+		b.mcu = std::move(m);
+		b.cameras = std::move(c);
+		b.recon = std::move(r);
+		d = std::make_unique<Daemon>(cfg, std::move(b));
+		facescan::Status s = d->start();
+		if (!s.ok())
+			fail_msg("start: %s", s.message().c_str());
+		loop = std::thread([this] { d->run(); });
+	}
+	~Rig()
+	{
+		d->request_stop();
+		loop.join();
+		d.reset();
+		std::string cmd = "rm -rf '" + dir + "'";
+		if (std::system(cmd.c_str()) != 0)
+			std::fprintf(stderr, "cannot remove %s\n", dir.c_str());
+	}
+	json ask(const json &req)
+	{
+		json reply;
+		facescan::Status s = control_request(cfg.socket_path, req,
+						     [&](const json &j) {
+							     reply = j;
+							     return false;
+						     },
+						     5000);
+		if (!s.ok())
+			fail_msg("request %s: %s", req.dump().c_str(), s.message().c_str());
+		return reply;
+	}
+	// A scan request followed to its end; returns the final "done" event (or the refusal).
+	json scan(const std::string &patient, std::vector<json> *progress = nullptr)
+	{
+		json last;
+		facescan::Status s = control_request(cfg.socket_path, {{"cmd", "scan"}, {"patient", patient}, {"wait", true}},
+						     [&](const json &j) {
+							     last = j;
+							     if (progress)
+								     progress->push_back(j);
+							     if (j.contains("ok") && !j.contains("event") && !j["ok"].get<bool>())
+								     return false;
+							     return j.value("event", "") != "done";
+						     },
+						     10000);
+		if (!s.ok())
+			fail_msg("scan: %s", s.message().c_str());
+		return last;
+	}
+	bool wait_state(State want, int ms = 5000)
+	{
+		for (int i = 0; i < ms / 10; i++) {
+			if (d->state() == want)
+				return true;
+			std::this_thread::sleep_for(std::chrono::milliseconds(10));
+		}
+		return false;
+	}
+};
+
+std::string slurp(const std::string &path)
+{
+	std::ifstream f(path, std::ios::binary);
+	std::stringstream ss;
+	ss << f.rdbuf();
+	return ss.str();
+}
+
+int setup(void **)
+{
+	set_log_sink([](int, const std::string &line) {
+		std::lock_guard<std::mutex> lock(log_mu);
+		log_lines.push_back(line);
+	});
+	return 0;
+}
+
+int teardown(void **)
+{
+	set_log_sink(nullptr);
+	return 0;
+}
+
+void assert_no_log_mentions(const std::string &needle)
+{
+	std::lock_guard<std::mutex> lock(log_mu);
+	for (const std::string &l : log_lines)
+		if (l.find(needle) != std::string::npos)
+			fail_msg("patient data in the log: %s", l.c_str());
+}
+
+} // namespace
+
+static void test_scan_over_socket(void **)
+{
+	Rig rig;
+	std::vector<json> progress;
+	json done = rig.scan("PAT-4711", &progress);
+	assert_string_equal(done.value("event", "").c_str(), "done");
+	assert_true(done["ok"].get<bool>());
+	json scan = done["scan"];
+	assert_string_equal(scan["state"].get<std::string>().c_str(), "delivered");
+	const std::string id = scan["scan_id"];
+	assert_int_equal(id.size(), 12);
+	// a progress line per stage
+	int stages = 0;
+	for (const json &p : progress)
+		if (p.value("event", "") == "progress")
+			stages++;
+	assert_true(stages >= 3);
+	// <share>/<patient>/<UTC time>_<scan-id>.{drc,png,json}
+	assert_int_equal(scan["files"].size(), 3);
+	const std::string drc = scan["files"][0];
+	assert_non_null(std::strstr(drc.c_str(), (rig.cfg.share_dir + "/PAT-4711/").c_str()));
+	const std::string stem = drc.substr(drc.rfind('/') + 1);
+	assert_int_equal(stem.size(), std::string("20260101T000000Z_").size() + 12 + 4);
+	assert_true(stem[8] == 'T' && stem[15] == 'Z' && stem.substr(17, 12) == id);
+	long v = 0, f = 0;
+	assert_true(decode_draco_counts(slurp(drc), &v, &f).ok());
+	assert_int_equal(v, scan["vertices"].get<long>());
+	assert_int_equal(f, scan["faces"].get<long>());
+	assert_true(v > 1000);
+	std::string png = slurp(scan["files"][1]);
+	assert_true(png.size() > 8 && png.compare(1, 3, "PNG") == 0);
+	json meta = json::parse(slurp(scan["files"][2]));
+	assert_string_equal(meta["scan_id"].get<std::string>().c_str(), id.c_str());
+	assert_string_equal(meta["patient_id"].get<std::string>().c_str(), "PAT-4711");
+	assert_true(meta["stage_ms"].contains("capture") && meta["stage_ms"].contains("reconstruct"));
+	assert_int_equal(meta["trigger_report"]["sequence"].get<int>(), 1);
+	assert_true(meta.contains("software_version") && meta.contains("calibration_id") && meta.contains("quality"));
+	// the MCU got the configured timing
+	assert_int_equal(rig.mcu->last_timing().exposure_us, rig.cfg.exposure_us);
+	// status and last
+	json st = rig.ask({{"cmd", "status"}});
+	assert_string_equal(st["state"].get<std::string>().c_str(), "idle");
+	json last = rig.ask({{"cmd", "last"}});
+	assert_string_equal(last["last"]["scan_id"].get<std::string>().c_str(), id.c_str());
+	assert_no_log_mentions("PAT-4711");
+	// the scan id is what the log names
+	bool named = false;
+	{
+		std::lock_guard<std::mutex> lock(log_mu);
+		for (const std::string &l : log_lines)
+			named = named || l.find(id) != std::string::npos;
+	}
+	assert_true(named);
+}
+
+static void test_socket_mode_and_busy(void **)
+{
+	Rig rig(Mode::clinic, 300);
+	struct stat st;
+	assert_int_equal(stat(rig.cfg.socket_path.c_str(), &st), 0);
+	assert_true(S_ISSOCK(st.st_mode));
+	assert_int_equal(st.st_mode & 0777, 0660);
+	json first = rig.ask({{"cmd", "scan"}, {"patient", "A1"}});
+	assert_true(first["ok"].get<bool>());
+	json second = rig.ask({{"cmd", "scan"}, {"patient", "B2"}});
+	assert_false(second["ok"].get<bool>());
+	assert_string_equal(second["error"].get<std::string>().c_str(), "busy");
+	// a button press during a scan starts nothing either
+	rig.mcu->press_button();
+	json status = rig.ask({{"cmd", "status"}});
+	assert_string_equal(status["scan_id"].get<std::string>().c_str(), first["scan_id"].get<std::string>().c_str());
+	assert_true(rig.wait_state(State::idle));
+	std::this_thread::sleep_for(std::chrono::milliseconds(200));
+	assert_int_equal(rig.mcu->fired(), 1);
+	json last = rig.ask({{"cmd", "last"}});
+	assert_string_equal(last["last"]["state"].get<std::string>().c_str(), "delivered");
+	// the next one is welcome
+	json third = rig.scan("C3");
+	assert_true(third["ok"].get<bool>());
+}
+
+static void test_malformed_and_oversize(void **)
+{
+	Rig rig;
+	std::string reply;
+	const char *bad[] = {"not json\n", "{\"cmd\":\"reboot\"}\n", "[]\n", "{\"cmd\":\"scan\",\"patient\":\"../x\"}\n",
+			     "\x00\x01\x02\n"};
+	const char *codes[] = {"bad_request", "bad_request", "bad_request", "bad_patient_id", "bad_request"};
+	for (int i = 0; i < 5; i++) {
+		std::string bytes = i == 4 ? std::string("\x00\x01\x02\n", 4) : std::string(bad[i]);
+		assert_true(control_raw(rig.cfg.socket_path, bytes, &reply, 2000).ok());
+		json j = json::parse(reply);
+		assert_false(j["ok"].get<bool>());
+		assert_string_equal(j["error"].get<std::string>().c_str(), codes[i]);
+	}
+	// oversize, with and without a newline at the end
+	std::string huge(64 * 1024, 'A');
+	assert_true(control_raw(rig.cfg.socket_path, huge, &reply, 2000).ok());
+	assert_string_equal(json::parse(reply)["error"].get<std::string>().c_str(), "too_large");
+	assert_true(control_raw(rig.cfg.socket_path, "{\"cmd\":\"status\",\"x\":\"" + huge + "\"}\n", &reply, 2000).ok());
+	assert_string_equal(json::parse(reply)["error"].get<std::string>().c_str(), "too_large");
+	// a client that connects and says nothing does not block others
+	int silent = socket(AF_UNIX, SOCK_STREAM, 0);
+	struct sockaddr_un addr = {};
+	addr.sun_family = AF_UNIX;
+	std::strcpy(addr.sun_path, rig.cfg.socket_path.c_str());
+	assert_int_equal(connect(silent, reinterpret_cast<sockaddr *>(&addr), sizeof addr), 0);
+	// the daemon keeps serving
+	json st = rig.ask({{"cmd", "status"}});
+	assert_true(st["ok"].get<bool>());
+	json done = rig.scan("AFTER-GARBAGE");
+	assert_true(done["ok"].get<bool>());
+	close(silent);
+	// bad patient ids over the socket, one per refused class
+	const std::string ids[] = {"", std::string(65, 'x'), "a/b", "a\\b", "a..b", std::string("a\x01" "b"), ".x"};
+	for (const std::string &id : ids) {
+		json r = rig.ask({{"cmd", "scan"}, {"patient", id}});
+		assert_false(r["ok"].get<bool>());
+		assert_string_equal(r["error"].get<std::string>().c_str(), "bad_patient_id");
+	}
+	assert_int_equal(rig.mcu->fired(), 1);
+}
+
+static void test_booth_button(void **)
+{
+	Rig rig(Mode::booth);
+	// a press with nothing armed: a walk-in scan
+	rig.mcu->press_button();
+	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu->fired() == 1);
+	assert_true(rig.wait_state(State::idle));
+	json last = rig.ask({{"cmd", "last"}});
+	assert_string_equal(last["last"]["patient_id"].get<std::string>().c_str(), "walk-in");
+	assert_string_equal(last["last"]["state"].get<std::string>().c_str(), "delivered");
+	// a request arms; the press fires it
+	json armed = rig.ask({{"cmd", "scan"}, {"patient", "BOOTH-7"}});
+	assert_string_equal(armed["state"].get<std::string>().c_str(), "armed");
+	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::armed));
+	json again = rig.ask({{"cmd", "scan"}, {"patient", "OTHER"}});
+	assert_string_equal(again["error"].get<std::string>().c_str(), "busy");
+	assert_true(rig.ask({{"cmd", "button"}})["ok"].get<bool>()); // the simulated button
+	assert_true(rig.wait_state(State::idle));
+	std::this_thread::sleep_for(std::chrono::milliseconds(100));
+	last = rig.ask({{"cmd", "last"}});
+	assert_string_equal(last["last"]["patient_id"].get<std::string>().c_str(), "BOOTH-7");
+	assert_int_equal(rig.mcu->fired(), 2);
+	// armed then cancelled; armed then timed out
+	rig.ask({{"cmd", "scan"}, {"patient", "CANCEL-ME"}});
+	assert_true(rig.ask({{"cmd", "cancel"}})["ok"].get<bool>());
+	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::idle));
+	rig.ask({{"cmd", "scan"}, {"patient", "TOO-SLOW"}});
+	std::this_thread::sleep_for(std::chrono::milliseconds(1300));
+	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::idle));
+	assert_string_equal(rig.ask({{"cmd", "last"}})["last"]["state"].get<std::string>().c_str(), "cancelled");
+	assert_int_equal(rig.mcu->fired(), 2);
+	assert_no_log_mentions("BOOTH-7");
+}
+
+static void test_mcu_unplugged_mid_scan(void **)
+{
+	Rig rig;
+	rig.mcu->unplug_on_fire();
+	json done = rig.scan("UNPLUG-1");
+	assert_false(done["ok"].get<bool>());
+	assert_string_equal(done["scan"]["state"].get<std::string>().c_str(), "failed");
+	assert_string_equal(done["scan"]["failed_stage"].get<std::string>().c_str(), "capturing");
+	assert_non_null(std::strstr(done["scan"]["error"].get<std::string>().c_str(), "MCU"));
+	json st = rig.ask({{"cmd", "status"}});
+	assert_string_equal(st["state"].get<std::string>().c_str(), "error");
+	assert_string_equal(st["mcu"].get<std::string>().c_str(), "disconnected");
+	json refused = rig.ask({{"cmd", "scan"}, {"patient", "UNPLUG-2"}});
+	assert_string_equal(refused["error"].get<std::string>().c_str(), "unavailable");
+	// nothing reached the share
+	struct stat s;
+	assert_int_equal(stat((rig.cfg.share_dir + "/UNPLUG-1").c_str(), &s), -1);
+	rig.mcu->replug();
+	assert_true(rig.wait_state(State::idle, 3000));
+	assert_true(rig.scan("UNPLUG-3")["ok"].get<bool>());
+}
+
+static void test_mcu_unplugged_while_idle(void **)
+{
+	Rig rig;
+	rig.mcu->unplug();
+	assert_true(rig.wait_state(State::error, 2000));
+	assert_non_null(std::strstr(rig.ask({{"cmd", "status"}})["fault"].get<std::string>().c_str(), "MCU"));
+	rig.mcu->replug();
+	assert_true(rig.wait_state(State::idle, 3000));
+}
+
+static void test_camera_timeout(void **)
+{
+	Rig rig;
+	rig.cams->fail_next_collect_with_timeout();
+	json done = rig.scan("CAMTIMEOUT");
+	assert_false(done["ok"].get<bool>());
+	assert_non_null(std::strstr(done["scan"]["error"].get<std::string>().c_str(), "no frame within"));
+	assert_true(rig.wait_state(State::idle, 3000));
+	assert_true(rig.scan("CAMTIMEOUT-2")["ok"].get<bool>());
+}
+
+static void test_frames_from_different_triggers(void **)
+{
+	Rig rig;
+	rig.cams->mix_next_trigger();
+	json done = rig.scan("MIXED");
+	assert_false(done["ok"].get<bool>());
+	const std::string err = done["scan"]["error"];
+	assert_non_null(std::strstr(err.c_str(), "camera 1: frame of trigger 2, expected 1"));
+	struct stat s;
+	assert_int_equal(stat((rig.cfg.share_dir + "/MIXED").c_str(), &s), -1);
+	assert_true(rig.wait_state(State::idle, 3000));
+	assert_true(rig.scan("MIXED-2")["ok"].get<bool>());
+}
+
+static void test_reconstruction_failure(void **)
+{
+	Rig rig;
+	rig.recon->fail_next_run();
+	json done = rig.scan("RECONFAIL");
+	assert_false(done["ok"].get<bool>());
+	assert_string_equal(done["scan"]["failed_stage"].get<std::string>().c_str(), "reconstructing");
+	assert_true(rig.wait_state(State::idle, 2000));
+	assert_no_log_mentions("RECONFAIL");
+}
+
+static void test_check_capture_skew(void **)
+{
+	FakeCameras cams(4);
+	TriggerReport r;
+	r.sequence = 5;
+	Capture c;
+	assert_true(cams.collect(r, 100, &c).ok());
+	assert_true(check_capture(c, 4, 1000).ok());
+	c.frames[2].timestamp_ns += 2000000; // 2 ms late
+	facescan::Status s = check_capture(c, 4, 1000);
+	assert_int_equal(s.code(), -EPROTO);
+	assert_non_null(std::strstr(s.message().c_str(), "2000 us apart"));
+	c.frames.erase(c.frames.begin() + 3);
+	assert_non_null(std::strstr(check_capture(c, 4, 1000).message().c_str(), "camera 3: no pattern frame"));
+}
+
+int main()
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_scan_over_socket),
+		cmocka_unit_test(test_socket_mode_and_busy),
+		cmocka_unit_test(test_malformed_and_oversize),
+		cmocka_unit_test(test_booth_button),
+		cmocka_unit_test(test_mcu_unplugged_mid_scan),
+		cmocka_unit_test(test_mcu_unplugged_while_idle),
+		cmocka_unit_test(test_camera_timeout),
+		cmocka_unit_test(test_frames_from_different_triggers),
+		cmocka_unit_test(test_reconstruction_failure),
+		cmocka_unit_test(test_check_capture_skew),
+	};
+	return cmocka_run_group_tests(tests, setup, teardown);
+}
