@@ -314,8 +314,32 @@ Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const Co
 		return Status::error(EINVAL, "refine_corners needs a CV_32F intensity image");
 	Corners c = *corners;
 	double side = std::sqrt(std::max(1.0, double(cv::countNonZero(blob.mask))));
-	if (!boundary_corners(intensity, blob, &c))
-		return Status::error(ERANGE, "the square's boundary has no four sides");
+	if (!boundary_corners(intensity, blob, &c) || !convex_quad(c)) {
+		// The force field's quadrants fail on squares turned near 45° or strongly sheared;
+		// start again from the minimum-area rectangle around the mask.
+		std::vector<cv::Point> nz;
+		cv::findNonZero(blob.mask, nz);
+		if (nz.size() < 4)
+			return Status::error(ERANGE, "the square is too small");
+		cv::Point2f box[4];
+		cv::minAreaRect(nz).points(box);
+		cv::Point2d ctr(0, 0);
+		for (const auto &b : box)
+			ctr += cv::Point2d(b);
+		ctr *= 0.25;
+		std::array<std::pair<double, cv::Point2d>, 4> by_angle;
+		for (size_t k = 0; k < 4; k++) {
+			cv::Point2d q(box[k]);
+			by_angle[k] = {std::atan2(q.y - ctr.y, q.x - ctr.x), q + cv::Point2d(blob.box.x, blob.box.y)};
+		}
+		// Ascending angle from -180°, image y down: TL, TR, BR, BL for an upright square.
+		std::sort(by_angle.begin(), by_angle.end(),
+			  [](const auto &a, const auto &b) { return a.first < b.first; });
+		for (size_t k = 0; k < 4; k++)
+			c[k] = by_angle[k].second;
+		if (!boundary_corners(intensity, blob, &c))
+			return Status::error(ERANGE, "the square's boundary has no four sides");
+	}
 	const Corners pixel_level = c;
 	double min_step = 0.3 * std::max(1.0, blob.inside - blob.outside);
 	std::vector<cv::Point2d> pts;
@@ -336,8 +360,11 @@ Status refine_corners(const cv::Mat &intensity, const SquareBlob &blob, const Co
 				return Status::error(ERANGE, "adjacent sides are nearly parallel");
 		c = next;
 	}
+	// The mask's outline (one threshold per square) bends where the skin's albedo changes within
+	// the square (brows, lips); the edge profiles (one level per profile) do not.
+	double limit = std::max(params.max_shift_px, 0.2 * side);
 	for (size_t k = 0; k < 4; k++)
-		if (cv::norm(c[k] - pixel_level[k]) > params.max_shift_px)
+		if (cv::norm(c[k] - pixel_level[k]) > limit)
 			return Status::error(ERANGE, "refined corner moved too far");
 	if (!convex_quad(c))
 		return Status::error(ERANGE, "refined corners are not a convex quadrilateral");

@@ -13,7 +13,7 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 	if (pattern.matrix.rows() < 3 || pattern.matrix.cols() < 3 || pattern.matrix.letters() < 2)
 		return Status::error(EINVAL, "detect_squares: the pattern has no decodable cells");
 	cv::Mat raw, intensity;
-	Status st = bgr_to_intensity(bgr, &raw);
+	Status st = bgr_to_intensity(bgr, &raw, params.gamma);
 	if (!st.ok())
 		return st;
 	// Light smoothing: less noise in the thresholds and edge profiles, and a symmetric blur
@@ -26,7 +26,9 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 	if (!st.ok())
 		return st;
 	detect_corners(intensity, blobs, params.corners, &out.squares);
-	st = classify_letters(bgr, blobs, pattern, params.hue, &out.squares);
+	HueParams hue = params.hue;
+	hue.gamma = params.gamma;
+	st = classify_letters(bgr, blobs, pattern, hue, &out.squares);
 	if (!st.ok())
 		return st;
 	link_grid(pattern.slide.gap_fraction, params.grid, &out.squares);

@@ -45,6 +45,7 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 		hash[key(sq[i].centroid)].push_back(int(i));
 
 	std::vector<std::array<int, 4>> found(sq.size(), {{-1, -1, -1, -1}});
+	const double cos_limit = std::cos(params.max_angle_deg * M_PI / 180.0);
 	const cv::Point2f dst[4] = {{0, 0}, {float(s), 0}, {float(s), float(s)}, {0, float(s)}};
 	for (size_t i = 0; i < sq.size(); i++) {
 		if (!sq[i].has_corners)
@@ -53,6 +54,9 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 		for (int k = 0; k < 4; k++)
 			src[k] = cv::Point2f(sq[i].corners[size_t(k)]);
 		cv::Matx33d H = cv::getPerspectiveTransform(src, dst);
+		// H is defined up to scale, its sign included: points on the square's side of the
+		// horizon share the sign of the square's own centre.
+		const double own_w = (H * cv::Vec3d(sq[i].centroid.x, sq[i].centroid.y, 1))[2];
 		std::array<double, 4> best{{1e9, 1e9, 1e9, 1e9}};
 		int cx = int(std::floor(sq[i].centroid.x / cell)), cy = int(std::floor(sq[i].centroid.y / cell));
 		for (int gy = cy - 2; gy <= cy + 2; gy++)
@@ -65,13 +69,16 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 						continue;
 					const cv::Point2d &p = sq[size_t(j)].centroid;
 					cv::Vec3d h = H * cv::Vec3d(p.x, p.y, 1);
-					if (h[2] <= 0)
+					if (h[2] * own_w <= 0)
 						continue;
 					double u = h[0] / h[2] - s / 2, v = h[1] / h[2] - s / 2;
+					double dist = std::hypot(u, v);
+					if (dist < params.min_pitches || dist > params.max_pitches)
+						continue;
 					for (int d = 0; d < 4; d++) {
-						double e = std::hypot(u - kDx[d], v - kDy[d]);
-						if (e < params.tolerance && e < best[size_t(d)]) {
-							best[size_t(d)] = e;
+						double cosang = (u * kDx[d] + v * kDy[d]) / dist;
+						if (cosang >= cos_limit && dist < best[size_t(d)]) {
+							best[size_t(d)] = dist;
 							found[i][size_t(d)] = j;
 						}
 					}

@@ -46,16 +46,27 @@ Status bgr_to_hsi(const cv::Mat &bgr, HsiImage *ret_hsi)
 	return {};
 }
 
-Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity)
+std::array<float, 256> linear_table(double gamma)
+{
+	std::array<float, 256> t;
+	for (int v = 0; v < 256; v++)
+		t[size_t(v)] = float(255.0 * std::pow(v / 255.0, gamma));
+	return t;
+}
+
+Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity, double gamma)
 {
 	if (bgr.empty() || bgr.type() != CV_8UC3)
 		return Status::error(EINVAL, "intensity needs an 8-bit 3-channel image");
+	if (!(gamma > 0))
+		return Status::error(EINVAL, "intensity: gamma must be positive");
+	const std::array<float, 256> lin = linear_table(gamma);
 	cv::Mat out(bgr.size(), CV_32F);
 	for (int y = 0; y < bgr.rows; y++) {
 		const uchar *p = bgr.ptr<uchar>(y);
 		float *o = out.ptr<float>(y);
 		for (int x = 0; x < bgr.cols; x++, p += 3)
-			o[x] = float(int(p[0]) + int(p[1]) + int(p[2])) * (1.0f / 3.0f);
+			o[x] = (lin[p[0]] + lin[p[1]] + lin[p[2]]) * (1.0f / 3.0f);
 	}
 	*ret_intensity = std::move(out);
 	return {};

@@ -54,7 +54,7 @@ struct SquareColour {
 	std::vector<cv::Vec3f> pixels;	  // inside minus gap
 };
 
-SquareColour square_colour(const cv::Mat &bgr, const SquareBlob &b)
+SquareColour square_colour(const cv::Mat &bgr, const SquareBlob &b, const std::array<float, 256> &lin)
 {
 	SquareColour out;
 	double side = std::sqrt(std::max(1.0, double(cv::countNonZero(b.mask))));
@@ -79,7 +79,7 @@ SquareColour square_colour(const cv::Mat &bgr, const SquareBlob &b)
 		for (int x = 0; x < big.width; x++)
 			if (!o[x])
 				for (size_t c = 0; c < 3; c++)
-					ring[c].push_back(p[x][int(c)]);
+					ring[c].push_back(lin[p[x][int(c)]]);
 	}
 	if (ring[0].size() < 4)
 		return out;
@@ -90,8 +90,8 @@ SquareColour square_colour(const cv::Mat &bgr, const SquareBlob &b)
 		const uchar *in = inner.ptr<uchar>(y);
 		for (int x = 0; x < big.width; x++)
 			if (in[x]) {
-				cv::Vec3f v(float(p[x][0] - gap[0]), float(p[x][1] - gap[1]),
-					    float(p[x][2] - gap[2]));
+				cv::Vec3f v(float(lin[p[x][0]] - gap[0]), float(lin[p[x][1]] - gap[1]),
+					    float(lin[p[x][2]] - gap[2]));
 				out.pixels.push_back(v);
 				sum += cv::Vec3d(v[0], v[1], v[2]);
 			}
@@ -117,10 +117,13 @@ Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs
 	const int letters = pattern.matrix.letters();
 	if (letters < 2)
 		return Status::error(EINVAL, "classify_letters: the pattern has fewer than 2 letters");
+	if (!(params.gamma > 0))
+		return Status::error(EINVAL, "classify_letters: gamma must be positive");
+	const std::array<float, 256> lin = linear_table(params.gamma);
 	std::vector<SquareColour> colours(blobs.size());
 	cv::Vec3d total(0, 0, 0);
 	for (size_t i = 0; i < blobs.size(); i++) {
-		colours[i] = square_colour(bgr, blobs[i]);
+		colours[i] = square_colour(bgr, blobs[i], lin);
 		if (colours[i].ok) {
 			const cv::Vec3d &m = colours[i].mean;
 			total += m * (1.0 / (m[0] + m[1] + m[2]));

@@ -31,8 +31,12 @@ struct HsiImage {
 /// Whole-frame HSI conversion (Gonzalez & Woods). detect_squares only needs the intensity plane
 /// and per-square colours, so it calls bgr_to_intensity and hsi_of_bgr instead.
 Status bgr_to_hsi(const cv::Mat &bgr, HsiImage *ret_hsi);
-/// I = (B + G + R) / 3 as CV_32F.
-Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity);
+/// I = (B + G + R) / 3 as CV_32F. With gamma != 1 the channels are first linearised,
+/// 255 * (v / 255)^gamma: cameras encode their output with a gamma, and a blurred edge lies at
+/// the midpoint level only in linear light.
+Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity, double gamma = 1.0);
+/// The 256-entry table v → 255 * (v / 255)^gamma.
+std::array<float, 256> linear_table(double gamma);
 /// HSI of one colour (B, G, R order, 0..255): hue 0..255, saturation 0..255, intensity 0..255.
 cv::Vec3d hsi_of_bgr(const cv::Vec3d &bgr);
 
@@ -74,8 +78,9 @@ struct CornerParams {
 	int samples_per_side = 12;
 	/// Half length of the intensity profile across an edge, in pixels (clamped to the gap).
 	double profile_half_px = 4.0;
-	/// A refined corner further than this from its pixel-level estimate is rejected.
-	double max_shift_px = 2.0;
+	/// A refined corner further than this (or 0.2 side, if more) from its pixel-level estimate
+	/// is rejected.
+	double max_shift_px = 3.0;
 	/// Line-fit RMS above which the square's corners are rejected, pixels.
 	double max_fit_rms_px = 0.8;
 };
@@ -106,6 +111,7 @@ void detect_corners(const cv::Mat &intensity, const std::vector<SquareBlob> &blo
 // ---- stage 1c: letters from hue, adaptive per capture ----------------------------------------
 
 struct HueParams {
+	double gamma = 2.2;		// the camera's output encoding (1 = linear)
 	int iterations = 8;		// k-means iterations on the hue circle
 	double min_saturation = 0.08;	// chroma / intensity below which a square has no letter
 	/// Squares whose inside colour spread (circular hue std, degrees) exceeds this are mixed
@@ -124,15 +130,18 @@ Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs
 // ---- stage 2: grid topology ------------------------------------------------------------------
 
 struct GridParams {
-	/// Allowed deviation of a neighbour's position from one pitch, in pitches (in the square's
-	/// own projective frame).
-	double tolerance = 0.35;
+	/// In the square's own projective frame (slide units, one pitch = 1) a neighbour's centre
+	/// must lie within this angle of the direction and between these distances; the nearest wins.
+	/// The range is wide because the frame of one small square extrapolates poorly on a face
+	/// that curves away (measured on the simulator: 0.8-1.35 pitches).
+	double max_angle_deg = 30;
+	double min_pitches = 0.55, max_pitches = 1.6;
 };
 
 /// Links each square to its up/left/right/down neighbour in the image's sense (decode_cells turns
 /// them into the slide's sense): the square's own corners define a local homography to slide
-/// units, in which the neighbour's centre must lie one pitch away. Links are kept only when
-/// mutual. `gap_fraction` is the slide's.
+/// units, in which the neighbour's centre must lie about one pitch away in about the right
+/// direction (the nearest such square). Links are kept only when mutual. `gap_fraction` is the slide's.
 void link_grid(double gap_fraction, const GridParams &params, std::vector<Square> *squares);
 
 // ---- stage 3: decoding -----------------------------------------------------------------------
@@ -159,6 +168,7 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 // ---- stages 1-3 + 5 for one camera -----------------------------------------------------------
 
 struct DetectParams {
+	double gamma = 2.2;	// the camera's output encoding, undone before any stage (1 = linear)
 	SquareParams squares;
 	CornerParams corners;
 	HueParams hue;

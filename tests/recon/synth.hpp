@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -47,6 +48,7 @@ struct Look {
 	double shading = 0;	   // left-to-right multiplicative falloff, 0..1
 	double blur = 0.8;	   // Gaussian sigma, pixels
 	double noise = 1.5;	   // Gaussian sigma, grey levels
+	double gamma = 2.2;	   // output encoding, as a camera does: 255 * (v / 255)^(1 / gamma)
 	uint64_t seed = 1;
 };
 
@@ -96,6 +98,12 @@ inline cv::Mat render(const facescan::Pattern &p, const Warp &w, const Look &loo
 	cv::RNG rng(look.seed);
 	rng.fill(n, cv::RNG::NORMAL, 0, look.noise);
 	f += n;
+	for (int y = 0; y < f.rows; y++)
+		for (int x = 0; x < f.cols; x++) {
+			cv::Vec3f &v = f.at<cv::Vec3f>(y, x);
+			for (int c = 0; c < 3; c++)
+				v[c] = float(255.0 * std::pow(std::clamp(v[c] / 255.0, 0.0, 1.0), 1.0 / look.gamma));
+		}
 	cv::Mat out;
 	f.convertTo(out, CV_8UC3);
 	return out;
