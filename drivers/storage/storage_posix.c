@@ -127,8 +127,8 @@ static int posix_open(const struct fscan_storage_config *cfg, void **ret_ctx)
 		goto err_free;
 	}
 	fscan_atomic_sweep(p->spool_fd);
-	uint64_t *seqs;
-	size_t n;
+	uint64_t *seqs = NULL;
+	size_t n = 0;
 	r = list_spool(p, &seqs, &n);
 	if (r < 0)
 		goto err_close;
@@ -207,7 +207,7 @@ static int share_present(struct posix *p)
 
 static int deliver(struct posix *p, const char *relpath, const void *data, size_t len)
 {
-	uint64_t avail;
+	uint64_t avail = 0;
 	int r = share_present(p);
 	if (r < 0)
 		return r;
@@ -216,7 +216,7 @@ static int deliver(struct posix *p, const char *relpath, const void *data, size_
 		return r;
 	if (avail < len || avail - len < p->min_free)
 		return -ENOSPC;
-	const char *name;
+	const char *name = NULL;
 	int dirfd = open_parent(p, relpath, &name);
 	if (dirfd < 0)
 		return dirfd;
@@ -229,7 +229,7 @@ static int deliver(struct posix *p, const char *relpath, const void *data, size_
 
 static int spool_entry(struct posix *p, const char *relpath, const void *data, size_t len)
 {
-	uint64_t avail;
+	uint64_t avail = 0;
 	int r = free_bytes(p->spool, &avail);
 	if (r < 0)
 		return r;
@@ -320,8 +320,8 @@ out:
 static int posix_flush(void *ctx, unsigned *ret_delivered)
 {
 	struct posix *p = ctx;
-	uint64_t *seqs;
-	size_t n;
+	uint64_t *seqs = NULL;
+	size_t n = 0;
 	int r = list_spool(p, &seqs, &n);
 	if (r < 0)
 		return r;
@@ -329,10 +329,10 @@ static int posix_flush(void *ctx, unsigned *ret_delivered)
 	for (size_t i = 0; i < n; i++) {
 		char name[64];
 		snprintf(name, sizeof(name), "%020" PRIu64 SPOOL_SUFFIX, seqs[i]);
-		char *buf;
-		const char *relpath;
-		const void *data;
-		size_t len;
+		char *buf = NULL;
+		const char *relpath = NULL;
+		const void *data = NULL;
+		size_t len = 0;
 		r = read_entry(p, seqs[i], &buf, &relpath, &data, &len);
 		if (r == -EBADMSG) {
 			/* Not ours or damaged: set it aside rather than block the queue. */
@@ -367,8 +367,8 @@ static int posix_flush(void *ctx, unsigned *ret_delivered)
 static int posix_pending(void *ctx)
 {
 	struct posix *p = ctx;
-	uint64_t *seqs;
-	size_t n;
+	uint64_t *seqs = NULL;
+	size_t n = 0;
 	int r = list_spool(p, &seqs, &n);
 	if (r < 0)
 		return r;
