@@ -33,6 +33,7 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 		return st;
 	link_grid(pattern.slide.gap_fraction, params.grid, &out.squares);
 	decode_cells(pattern, params.decode, &out);
+	check_grid_shapes(params.grid, &out.squares);
 	*ret = std::move(out);
 	return {};
 }

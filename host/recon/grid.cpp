@@ -109,4 +109,42 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 	}
 }
 
+void check_grid_shapes(const GridParams &params, std::vector<Square> *squares)
+{
+	std::vector<Square> &sq = *squares;
+	// Mean length of the horizontal (TL-TR, BL-BR) and vertical (TL-BL, TR-BR) sides.
+	auto sides = [](const Square &q, int vertical) {
+		const auto &c = q.corners;
+		return vertical ? 0.5 * (cv::norm(c[3] - c[0]) + cv::norm(c[2] - c[1]))
+				: 0.5 * (cv::norm(c[1] - c[0]) + cv::norm(c[2] - c[3]));
+	};
+	std::vector<char> irregular(sq.size(), 0);
+	for (size_t i = 0; i < sq.size(); i++) {
+		if (!sq[i].has_corners)
+			continue;
+		for (int vertical = 0; vertical < 2; vertical++) {
+			// Vertical sides from the up (0) and down (3) neighbours; horizontal from left (1), right (2).
+			int a = sq[i].neighbours[vertical ? 0 : 1], b = sq[i].neighbours[vertical ? 3 : 2];
+			double sum = 0;
+			int n = 0;
+			for (int j : {a, b})
+				if (j >= 0 && sq[size_t(j)].has_corners) {
+					sum += sides(sq[size_t(j)], vertical);
+					n++;
+				}
+			if (!n)
+				continue;
+			double ratio = sides(sq[i], vertical) / (sum / n);
+			double tol = n == 2 ? params.shape_tolerance : params.single_tolerance;
+			if (std::abs(ratio - 1) > tol)
+				irregular[i] = 1;
+		}
+	}
+	for (size_t i = 0; i < sq.size(); i++)
+		if (irregular[i]) {
+			sq[i].irregular = true;
+			sq[i].has_corners = false;
+		}
+}
+
 } // namespace facescan::recon

@@ -136,6 +136,9 @@ struct GridParams {
 	/// that curves away (measured on the simulator: 0.8-1.35 pitches).
 	double max_angle_deg = 30;
 	double min_pitches = 0.55, max_pitches = 1.6;
+	/// Shape check (after decoding): a square's side lengths may differ from what its neighbours
+	/// predict by this fraction (both neighbours known) or `single_tolerance` (one known).
+	double shape_tolerance = 0.2, single_tolerance = 0.3;
 };
 
 /// Links each square to its up/left/right/down neighbour in the image's sense (decode_cells turns
@@ -143,6 +146,12 @@ struct GridParams {
 /// units, in which the neighbour's centre must lie about one pitch away in about the right
 /// direction (the nearest such square). Links are kept only when mutual. `gap_fraction` is the slide's.
 void link_grid(double gap_fraction, const GridParams &params, std::vector<Square> *squares);
+
+/// Marks squares whose shape disagrees with their neighbours' (Square::irregular; their corners
+/// are dropped). A shadow edge or an occluding contour cuts a whole row of squares alike, so each
+/// square's vertical sides are predicted from its up/down neighbours and its horizontal sides from
+/// its left/right neighbours (slide sense, so after decode_cells).
+void check_grid_shapes(const GridParams &params, std::vector<Square> *squares);
 
 // ---- stage 3: decoding -----------------------------------------------------------------------
 

@@ -116,7 +116,7 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 
 	std::unordered_map<int, std::vector<int>> by_cell;
 	for (size_t j = 0; j < b.squares.size(); j++)
-		if (b.squares[j].cell >= 0 && b.squares[j].cell < cells)
+		if (b.squares[j].cell >= 0 && b.squares[j].cell < cells && !b.squares[j].irregular)
 			by_cell[b.squares[j].cell].push_back(int(j));
 	const int cols = pattern.matrix.cols();
 	std::vector<int> comp_a = grid_parts(a, cols), comp_b = grid_parts(b, cols);
@@ -130,7 +130,7 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 	std::map<std::pair<int, int>, std::pair<int, int>> tally; // (part a, part b) → (ok, total)
 	for (size_t i = 0; i < a.squares.size(); i++) {
 		int cell = a.squares[i].cell;
-		if (cell < 0)
+		if (cell < 0 || a.squares[i].irregular)
 			continue;
 		auto it = by_cell.find(cell);
 		if (it == by_cell.end())

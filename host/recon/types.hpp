@@ -28,6 +28,9 @@ struct Square {
 	std::array<int, 4> neighbours{{-1, -1, -1, -1}}; // up, left, right, down: indices or -1
 	int cell = -1;		// decoded matrix cell r*cols+c, -1 not decoded
 	bool corrected = false; // decoded after correcting a wrong or missing letter
+	/// Its shape disagrees with its grid neighbours' (cut by a shadow or an occluding edge, bent
+	/// over a lip): its features are not surface points of the slide's square, so it is not matched.
+	bool irregular = false;
 	double area = 0;	// pixels
 };
 

@@ -349,6 +349,30 @@ static void decoding_corrects_injected_errors_and_gaps(void **)
 	assert_true(lone.rejected >= 1);
 }
 
+static void shadow_cut_squares_are_marked_irregular(void **)
+{
+	Pattern p = the_pattern();
+	CameraDetections d = grid_from_matrix(p);
+	const int cols = p.matrix.cols();
+	for (Square &s : d.squares) {
+		cv::Point2d tl = s.centroid - cv::Point2d(10.5, 10.5);
+		s.corners = {tl, tl + cv::Point2d(21, 0), tl + cv::Point2d(21, 21), tl + cv::Point2d(0, 21)};
+		s.has_corners = true;
+	}
+	// Row 6 is cut by a shadow edge: the lower 6 of 21 px of every square in it are dark.
+	for (int c = 0; c < cols; c++) {
+		Square &s = d.squares[size_t(6 * cols + c)];
+		s.corners[2].y -= 6;
+		s.corners[3].y -= 6;
+	}
+	check_grid_shapes(GridParams{}, &d.squares);
+	for (size_t i = 0; i < d.squares.size(); i++) {
+		bool cut = int(i) / cols == 6;
+		assert_int_equal(d.squares[i].irregular, cut);
+		assert_int_equal(d.squares[i].has_corners, !cut);
+	}
+}
+
 static void detection_decodes_a_rendered_view(void **)
 {
 	Pattern p = the_pattern();
@@ -400,6 +424,7 @@ int main(void)
 		cmocka_unit_test(letters_are_classified_under_a_skin_tint),
 		cmocka_unit_test(grid_links_follow_the_slide),
 		cmocka_unit_test(decoding_corrects_injected_errors_and_gaps),
+		cmocka_unit_test(shadow_cut_squares_are_marked_irregular),
 		cmocka_unit_test(detection_decodes_a_rendered_view),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
