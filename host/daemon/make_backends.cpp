@@ -1,6 +1,9 @@
 #include "daemon/make_backends.hpp"
 
+#include "daemon/driver_cameras.hpp"
 #include "daemon/fake_backends.hpp"
+#include "daemon/serial_mcu.hpp"
+#include "daemon/sim_renderer.hpp"
 
 namespace facescan::daemon {
 
@@ -10,18 +13,25 @@ Status make_backends(const Config &config, Backends *ret_backends)
 	if (config.serial_device == "fake")
 		b.mcu = std::make_unique<FakeMcu>();
 	else
-		return Status::error(ENOTSUP, "serial_device: the serial MCU backend is not in this build; "
-					      "use serial_device = fake");
-	if (config.camera_backend == "fake")
+		b.mcu = std::make_unique<SerialMcu>(config.serial_device, config.serial_baud, config.mode == Mode::booth,
+						    config.mcu_timeout_ms);
+	if (config.camera_backend == "fake") {
 		b.cameras = std::make_unique<FakeCameras>(config.camera_count);
-	else
-		return Status::error(ENOTSUP, "camera_backend = " + config.camera_backend +
-						      " is not in this build; use camera_backend = fake");
+	} else {
+		auto cams = std::make_unique<DriverCameras>(config.camera_backend, config.replay_dir, config.camera_count,
+							    config.exposure_us, config.max_frame_skew_us);
+		if (config.camera_backend == "simulated") {
+			Status s = attach_simulator(config, cams.get());
+			if (!s.ok())
+				return s;
+		}
+		b.cameras = std::move(cams);
+	}
 	if (config.recon_backend == "fake")
 		b.recon = std::make_unique<FakeReconstructor>();
 	else
-		return Status::error(ENOTSUP, "recon_backend = " + config.recon_backend +
-						      " is not in this build; use recon_backend = fake");
+		return Status::error(ENOTSUP, "recon_backend = pipeline: the reconstruction library has no "
+					      "capture-set → mesh entry point in this build; use recon_backend = fake");
 	*ret_backends = std::move(b);
 	return Status();
 }

@@ -1,10 +1,14 @@
 #include "daemon/spool.hpp"
 
+#include "facescan/storage.h"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <csignal>
+#include <cstdlib>
 #include <cstring>
 #include <dirent.h>
 #include <fcntl.h>
@@ -94,45 +98,20 @@ void pause_ms(int ms)
 
 Status write_file_atomic(const std::string &dir, const std::string &name, const std::string &contents)
 {
-	const std::string prefix = "." + name + ".part-";
-	for (const std::string &n : list_dir(dir))
-		if (n.compare(0, prefix.size(), prefix) == 0)
-			unlink((dir + "/" + n).c_str()); // left by a crashed writer
-	const std::string tmp = dir + "/" + prefix + std::to_string(getpid());
-	const std::string path = dir + "/" + name;
-	int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0640);
-	if (fd < 0)
-		return errno_status(errno, "create " + tmp);
-	size_t off = 0;
-	while (off < contents.size()) {
-		ssize_t n = ::write(fd, contents.data() + off, contents.size() - off);
-		if (n < 0 && errno == EINTR)
+	// Temp files of writers that died (kill -9 mid-write) go first: ".fscan-tmp.<pid>.<n>.<name>"
+	// is drivers/storage's naming; a live pid is another writer at work and is left alone.
+	const std::string prefix = ".fscan-tmp.";
+	for (const std::string &n : list_dir(dir)) {
+		if (n.compare(0, prefix.size(), prefix) != 0)
 			continue;
-		if (n < 0) {
-			int err = errno;
-			::close(fd);
-			unlink(tmp.c_str());
-			return errno_status(err, "write " + tmp);
-		}
-		off += static_cast<size_t>(n);
+		long pid = std::strtol(n.c_str() + prefix.size(), nullptr, 10);
+		if (pid > 0 && kill(static_cast<pid_t>(pid), 0) < 0 && errno == ESRCH)
+			unlink((dir + "/" + n).c_str());
 	}
-	if (fsync(fd) < 0 || fchmod(fd, 0640) < 0) {
-		int err = errno;
-		::close(fd);
-		unlink(tmp.c_str());
-		return errno_status(err, "fsync " + tmp);
-	}
-	if (::close(fd) < 0) {
-		int err = errno;
-		unlink(tmp.c_str());
-		return errno_status(err, "close " + tmp);
-	}
-	if (rename(tmp.c_str(), path.c_str()) < 0) {
-		int err = errno;
-		unlink(tmp.c_str());
-		return errno_status(err, "rename to " + path);
-	}
-	return fsync_dir(dir);
+	int rc = fscan_write_file_atomic(dir.c_str(), name.c_str(), contents.data(), contents.size(), 0640);
+	if (rc < 0)
+		return errno_status(-rc, "write " + dir + "/" + name);
+	return Status();
 }
 
 Spool::Spool(std::string spool_dir, std::string share_dir, long min_free_mb)

@@ -1,5 +1,5 @@
 // Where finished scans go: first into the local spool (a commit point that survives a crash),
-// then onto the share with atomic renames. A scan lives in <spool>/queue/<base>/ as its files
+// then onto the share with atomic renames (drivers/storage's atomic write). A scan lives in <spool>/queue/<base>/ as its files
 // plus manifest.json, written last: an entry without a manifest was interrupted while being
 // written and is reported failed at the next start. Delivery copies every file to
 // <share>/<patient>/<file> (temp file → fsync → rename → fsync dir; metadata .json last), then
@@ -28,8 +28,9 @@ struct Delivered {
 	std::vector<std::string> paths;  // where the files landed
 };
 
-/// Writes `contents` to dir/name atomically (mode 0640). A crash leaves either the old file or
-/// the new one, plus at most a hidden ".name.part-PID" temp file that later writes remove.
+/// Writes `contents` to dir/name atomically (mode 0640) with drivers/storage's
+/// fscan_write_file_atomic(). A crash leaves the old file or the new one, plus at most a hidden
+/// ".fscan-tmp.<pid>..." temp file that the next write into that directory removes.
 Status write_file_atomic(const std::string &dir, const std::string &name, const std::string &contents);
 
 class Spool {

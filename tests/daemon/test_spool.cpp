@@ -73,7 +73,7 @@ static void test_atomic_write(void **)
 	const std::string dir = tmp + "/atomic";
 	mkdir(dir.c_str(), 0755);
 	// A temp file left by a crashed writer is removed by the next write of that name.
-	std::ofstream(dir + "/.a.drc.part-99999") << "half";
+	std::ofstream(dir + "/.fscan-tmp.99999999.1.a.drc") << "half";
 	assert_true(write_file_atomic(dir, "a.drc", "new contents").ok());
 	assert_string_equal(slurp(dir + "/a.drc").c_str(), "new contents");
 	std::vector<std::string> names = ls(dir);
@@ -184,7 +184,7 @@ static void test_redelivery_after_crash_replaces(void **)
 	assert_true(sp.put(b, "111111111111", "P5", files_of(b), 0).ok());
 	mkdir((share + "/P5").c_str(), 0750);
 	std::ofstream(share + "/P5/" + b + ".drc") << "mesh-" << b;
-	std::ofstream(share + "/P5/." + b + ".png.part-4242") << "half";
+	std::ofstream(share + "/P5/.fscan-tmp.99999998.3." + b + ".png") << "half";
 	std::vector<Delivered> d;
 	assert_true(sp.deliver(&d, 0).ok());
 	std::vector<std::string> got = ls(share + "/P5");

@@ -17,14 +17,15 @@ int scan_main(int argc, char **argv)
 				      {"json", no_argument, nullptr, 'j'},
 				      {"no-wait", no_argument, nullptr, 'n'},
 				      {"timeout", required_argument, nullptr, 't'},
+				      {"press", no_argument, nullptr, 'b'},
 				      {"help", no_argument, nullptr, 'h'},
 				      {nullptr, 0, nullptr, 0}};
 	std::string patient, sock = daemon::default_socket_path();
-	bool as_json = false, wait = true;
+	bool as_json = false, wait = true, press = false;
 	int timeout_s = 600;
 	int c;
 	optind = 1;
-	while ((c = getopt_long(argc, argv, "p:s:jnt:h", opts, nullptr)) != -1) {
+	while ((c = getopt_long(argc, argv, "p:s:jnt:bh", opts, nullptr)) != -1) {
 		switch (c) {
 		case 'p':
 			patient = optarg;
@@ -38,6 +39,9 @@ int scan_main(int argc, char **argv)
 		case 'n':
 			wait = false;
 			break;
+		case 'b':
+			press = true;
+			break;
 		case 't':
 			timeout_s = std::atoi(optarg);
 			if (timeout_s <= 0) {
@@ -46,11 +50,13 @@ int scan_main(int argc, char **argv)
 			}
 			break;
 		case 'h':
-			std::printf("usage: facescan scan --patient ID [--no-wait] [--json] [--socket PATH] [--timeout S]\n"
+			std::printf("usage: facescan scan --patient ID [--no-wait] [--press] [--json] [--socket PATH] [--timeout S]\n"
 				    "Asks facescand for a scan (clinic mode: now; booth mode: at the next button press)\n"
 				    "and prints its progress and result. Exit 0 when the scan is delivered or spooled.\n"
 				    "  -p, --patient ID  patient id: letters, digits, '.', '_', '-' (max 64)\n"
 				    "  -n, --no-wait     return once the daemon accepted the scan\n"
+				    "  -b, --press       booth mode: then press the simulated button (fake MCU or\n"
+				    "                    an emulated firmware board)\n"
 				    "  -j, --json        print the daemon's JSON replies\n"
 				    "  -s, --socket PATH control socket (default $FACESCAN_SOCKET or %s)\n"
 				    "  -t, --timeout S   give up waiting after S seconds (default 600)\n",
@@ -90,6 +96,19 @@ int scan_main(int argc, char **argv)
 				if (!as_json)
 					std::printf("scan %s accepted (%s)\n", j.value("scan_id", "").c_str(),
 						    j.value("state", "").c_str());
+				if (press && j.value("state", "") == "armed") {
+					Status b = daemon::control_request(
+						sock, {{"cmd", "button"}},
+						[&](const nlohmann::json &r) {
+							if (!r.value("ok", false))
+								std::fprintf(stderr, "facescan scan: button: %s\n",
+									     r.value("message", "refused").c_str());
+							return false;
+						},
+						5000);
+					if (!b.ok())
+						std::fprintf(stderr, "facescan scan: button: %s\n", b.message().c_str());
+				}
 				rc = wait ? 1 : 0;
 				return wait;
 			}

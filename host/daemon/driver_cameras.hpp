@@ -1,0 +1,49 @@
+// The booth cameras over drivers/camera (libcamera, replay, simulated or the driver's fake).
+#pragma once
+
+#include "daemon/backends.hpp"
+
+#include <functional>
+
+struct fscan_camera;
+struct fscan_camera_ops;
+
+namespace facescan::daemon {
+
+/// Renders camera `camera`'s frame of trigger `index` (0 pattern, 1 texture) as 8-bit BGR.
+using RenderFn = std::function<Status(int camera, int index, cv::Mat *ret_bgr)>;
+
+class DriverCameras : public Cameras {
+public:
+	/// backend: "libcamera", "replay" (source = capture set directory), "sim" (render and
+	/// width/height required), "driver-fake".
+	DriverCameras(std::string backend, std::string source, int count, int exposure_us, int max_skew_us);
+	~DriverCameras() override;
+	void set_renderer(RenderFn render, int width, int height, std::string calibration_id);
+	Status open() override;
+	std::string backend_name() const override
+	{
+		return backend_;
+	}
+	int count() const override;
+	Status prepare() override;
+	Status collect(const TriggerReport &report, int timeout_ms, Capture *ret_capture) override;
+	/// The driver handle (tests reach the fake's back doors through it).
+	fscan_camera *handle()
+	{
+		return cam_;
+	}
+
+private:
+	std::string backend_, source_;
+	int count_, exposure_us_, max_skew_us_;
+	RenderFn render_;
+	int width_ = 0, height_ = 0;
+	std::string calibration_id_;
+	fscan_camera *cam_ = nullptr;
+	uint32_t shots_ = 2;
+	static int render_trampoline(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb,
+				     uint32_t width, uint32_t height, uint32_t stride, uint64_t *ret_timestamp_ns);
+};
+
+} // namespace facescan::daemon

@@ -1,0 +1,170 @@
+#!/bin/sh
+# facescand end to end: the native firmware build on a pty (the real protocol and trigger
+# sequence), facescand as its own process with the fake cameras and reconstruction, the CLI.
+# Scans by socket request and by button press; faults: a bad config, the MCU unplugged
+# mid-scan, the share missing then back, kill -9 while spooling and while delivering.
+set -u
+bin=${FACESCAN_BIN:?}
+fw=$bin/facescan-fw-native
+[ -x "$fw" ] || { echo "SKIP: $fw not built" >&2; exit 77; }
+T=$(mktemp -d /tmp/facescan-e2e-XXXXXX)
+FWPID= DPID=
+cleanup() {
+	[ -n "$DPID" ] && kill -9 "$DPID" 2>/dev/null
+	[ -n "$FWPID" ] && kill "$FWPID" 2>/dev/null
+	wait 2>/dev/null
+	rm -rf "$T"
+}
+trap cleanup EXIT
+fails=0
+ok() { echo "ok: $*"; }
+bad() { echo "FAIL: $*"; fails=$((fails + 1)); }
+check() { what=$1; shift; if "$@"; then ok "$what"; else bad "$what"; fi; }
+export FACESCAN_SOCKET=$T/sock
+fs() { "$bin/facescan" "$@"; }
+state_now() { fs status --json 2>/dev/null | sed -n 's/^ *"state": "\([a-z]*\)".*/\1/p'; }
+
+start_fw() {
+	"$fw" --link "$T/tty" >"$T/fw.out" 2>"$T/fw.err" &
+	FWPID=$!
+	for _ in $(seq 50); do [ -e "$T/tty" ] && return 0; sleep 0.1; done
+	return 1
+}
+start_daemon() { # extra config lines on stdin
+	{ cat <<-CONF
+	share_dir = $T/share
+	spool_dir = $T/spool
+	socket_path = $T/sock
+	serial_device = $T/tty
+	camera_backend = fake
+	recon_backend = fake
+	mode = booth
+	min_free_mb = 0
+	spool_retry_ms = 200
+	mcu_timeout_ms = 1500
+	CONF
+	cat; } >"$T/facescand.conf"
+	"$bin/facescand" --config "$T/facescand.conf" 2>>"$T/daemon.log" &
+	DPID=$!
+	for _ in $(seq 100); do fs status >/dev/null 2>&1 && return 0; sleep 0.1; done
+	return 1
+}
+stop_daemon() { kill "$DPID"; wait "$DPID"; DPID=; }
+wait_state() { # state, tenths of a second
+	for _ in $(seq "$2"); do
+		[ "$(state_now)" = "$1" ] && return 0
+		sleep 0.1
+	done
+	return 1
+}
+visible_files() { find "$T/share/$1" -type f ! -name '.*' 2>/dev/null | wc -l; }
+hidden_files() { find "$T/share" -name '.*' -type f 2>/dev/null | wc -l; }
+
+# ---- the shipped config parses; the unit is Type=notify with a watchdog and sandboxing ----
+check "shipped facescand.conf is valid" "$bin/facescand" --check --config host/facescand/facescand.conf
+for key in Type=notify WatchdogSec= User=facescan ProtectSystem=strict ReadWritePaths=/srv/facescan/share; do
+	check "unit has $key" grep -q "^$key" host/facescand/facescand.service
+done
+
+# ---- a bad config is refused, naming the line ----
+printf 'mode = booth\nshare_dir = relative\n' >"$T/bad.conf"
+"$bin/facescand" --config "$T/bad.conf" 2>"$T/bad.err"; rc=$?
+check "bad config refused (exit 1)" [ "$rc" -eq 1 ]
+check "bad config error names the line" grep -q "bad.conf:2: share_dir" "$T/bad.err"
+
+mkdir -p "$T/share"
+check "native firmware on a pty" start_fw
+check "facescand starts" start_daemon </dev/null
+check "socket is mode 0660" [ "$(stat -c %a "$T/sock")" = 660 ]
+check "status over the socket" sh -c "\"$bin/facescan\" status | grep -q 'firmware .* on native'"
+
+# ---- booth: a request arms, the firmware's button fires it ----
+fs scan --patient E2E-1 --json >"$T/scan1.json" &
+SCAN=$!
+check "armed" wait_state armed 30
+kill -USR1 "$FWPID"   # the firmware's booth button (debounced in the firmware)
+wait "$SCAN"; rc=$?
+check "scan by request + button exits 0" [ "$rc" -eq 0 ]
+check "three files for E2E-1" [ "$(visible_files E2E-1)" -eq 3 ]
+drc=$(ls "$T"/share/E2E-1/*.drc 2>/dev/null | head -1)
+check "mesh is named <UTC>_<scan-id>.drc" sh -c "basename '$drc' | grep -Eq '^[0-9]{8}T[0-9]{6}Z_[0-9a-f]{12}\.drc$'"
+check "mesh is Draco" sh -c "head -c 5 '$drc' | grep -q DRACO"
+meta=${drc%.drc}.json
+check "metadata has the firmware's trigger report" sh -c "grep -q '\"trigger\": \"button\"' '$meta' && grep -q '\"shutters_in_lockstep\": true' '$meta'"
+
+# ---- booth: a press with nothing armed is a walk-in scan ----
+kill -USR1 "$FWPID"
+sleep 0.3
+check "walk-in scan done" wait_state idle 50
+sleep 0.3
+check "walk-in scan delivered" [ "$(visible_files walk-in)" -eq 3 ]
+
+# ---- MCU unplugged mid-scan ----
+stop_daemon
+start_daemon <<CONF
+projector_settle_us = 500000
+CONF
+fs scan --patient UNPLUG --no-wait >/dev/null
+check "armed before the unplug" wait_state armed 30
+kill -USR1 "$FWPID"
+sleep 0.2             # the sequence runs >= 500 ms: the cable goes in the middle of it
+kill -9 "$FWPID"; wait "$FWPID" 2>/dev/null; FWPID=
+check "error after the MCU vanished mid-scan" wait_state error 40
+check "last reports the failure" sh -c "\"$bin/facescan\" last --json | grep -q '\"failed_stage\": \"capturing\"'"
+check "nothing on the share for UNPLUG" [ "$(visible_files UNPLUG)" -eq 0 ]
+start_fw
+check "recovered when the MCU is back" wait_state idle 60
+stop_daemon
+
+# ---- share missing, then back: spooled, delivered once ----
+start_daemon </dev/null
+mv "$T/share" "$T/share.away"
+fs scan --patient SPOOL-1 --press >"$T/spool.out"; rc=$?
+check "spooled scan exits 0" [ "$rc" -eq 0 ]
+check "scan reported spooled" grep -q ": spooled" "$T/spool.out"
+check "share root not recreated" [ ! -e "$T/share" ]
+check "status counts it" sh -c "\"$bin/facescan\" status --json | grep -q '\"spool_pending\": 1'"
+mv "$T/share.away" "$T/share"
+for _ in $(seq 50); do [ "$(visible_files SPOOL-1)" -eq 3 ] && break; sleep 0.1; done
+check "spooled scan delivered when the share is back" [ "$(visible_files SPOOL-1)" -eq 3 ]
+sleep 0.6
+check "delivered once" [ "$(visible_files SPOOL-1)" -eq 3 ]
+check "last says delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered'"
+check "spool empty" [ -z "$(ls "$T/spool/queue")" ]
+stop_daemon
+
+# ---- kill -9 while spooling: nothing visible, reported failed on restart ----
+start_daemon <<CONF
+test_delay_write_ms = 1500
+CONF
+fs scan --patient KILL-1 --press --no-wait >/dev/null
+check "writing" wait_state writing 50
+sleep 0.3
+kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
+check "no file of the killed scan on the share" [ "$(visible_files KILL-1)" -eq 0 ]
+start_daemon </dev/null
+check "killed scan reported failed after restart" sh -c "\"$bin/facescan\" last --json | grep -q 'interrupted while writing'"
+check "spool cleared" [ -z "$(ls "$T/spool/queue")" ]
+stop_daemon
+
+# ---- kill -9 while delivering: recovered on restart, no partial or duplicate file ----
+start_daemon <<CONF
+test_delay_deliver_ms = 1500
+CONF
+fs scan --patient KILL-2 --press --no-wait >/dev/null
+sleep 0.5
+for _ in $(seq 50); do [ "$(visible_files KILL-2)" -ge 1 ] && break; sleep 0.1; done
+kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
+n=$(visible_files KILL-2)
+check "mid-delivery: some but not all files (got $n)" [ "$n" -ge 1 ] && [ "$n" -lt 3 ]
+check "no metadata before the mesh is complete" [ -z "$(ls "$T"/share/KILL-2/*.json 2>/dev/null)" ]
+start_daemon </dev/null
+for _ in $(seq 50); do [ "$(visible_files KILL-2)" -eq 3 ] && break; sleep 0.1; done
+check "delivery completed after restart" [ "$(visible_files KILL-2)" -eq 3 ]
+check "no temp file left on the share" [ "$(hidden_files)" -eq 0 ]
+check "no patient id in the daemon's log" sh -c "! grep -E 'E2E-1|UNPLUG|SPOOL-1|KILL-1|KILL-2' '$T/daemon.log'"
+check "a progress line per stage" sh -c "grep -c '\[[123]/3\]' '$T/daemon.log' | awk '{exit !(\$1 >= 9)}'"
+stop_daemon
+
+[ "$fails" -eq 0 ] || { echo "--- daemon log"; cat "$T/daemon.log"; }
+exit "$fails"
