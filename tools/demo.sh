@@ -37,7 +37,7 @@ ran="" stood_in=""
 fw_kind=""
 elf=build/firmware/lm3s6965evb/facescan-fw.elf
 if command -v qemu-system-arm >/dev/null 2>&1 && [ -f "$elf" ]; then
-	qemu-system-arm -M lm3s6965evb -nographic -monitor none -serial pty -kernel "$elf" \
+	qemu-system-arm -M lm3s6965evb -nographic -monitor none -icount shift=5,sleep=off -serial pty -kernel "$elf" \
 		>"$out/firmware.log" 2>&1 &
 	FWPID=$!
 	for _ in $(seq 50); do
@@ -159,7 +159,7 @@ say "  mesh:          $(ls "$out"/share/"$patient"/*.drc) ($(wc -c <"$(ls "$out"
 say "  vertices:      $(num vertices), faces: $(num faces)"
 say "  ms per stage:  capture $(num capture | cut -d. -f1), reconstruct $(num reconstruct | cut -d. -f1), write $(fs last --json | sed -n 's/^ *"write": \([0-9]*\).*/\1/p')"
 ticks=$(tr -d ' \n' <"$meta" | sed -n 's/.*"step_ticks":\[\([0-9,]*\)\].*/\1/p')
-[ -n "$ticks" ] && say "  trigger:       firmware step ticks (1 per us) $ticks; 4 shutters in one port write: $(grep -q '"shutters_in_lockstep": true' "$meta" && echo yes || echo no)"
+[ -n "$ticks" ] && say "  trigger:       firmware step ticks $ticks (at $(num tick_hz) Hz); 4 shutters in one port write: $(grep -q '"shutters_in_lockstep": true' "$meta" && echo yes || echo no)"
 acc=$(sed -n 's/^ *"\(rms_mm\|accuracy_rms_mm\|mean_error_mm\)": \([0-9.]*\).*/\1 \2/p' "$meta" | head -1)
 if [ -n "$acc" ]; then
 	say "  accuracy:      $acc (against the simulator's ground truth)"

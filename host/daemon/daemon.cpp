@@ -522,7 +522,7 @@ struct Daemon::Impl {
 		TriggerReport report;
 		s = be.mcu->fire(cfg.mcu_timeout_ms, &report);
 		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "MCU: " + s.message(), true, {{"stage", "capturing"}}});
+			post({Msg::Kind::failed, 0, s.message(), true, {{"stage", "capturing"}}});
 			return;
 		}
 		s = be.cameras->collect(report, cfg.capture_timeout_ms, &cap);
