@@ -34,6 +34,7 @@ static struct {
 	bool debug_holding;
 	bool light_on;
 	uint32_t light_on_since;
+	bool hung; /* FS_CMD_DEBUG_HANG: the task does nothing until a reset */
 } g;
 
 void fw_isr_uart_rx(uint8_t byte)
@@ -262,6 +263,14 @@ static void handle(const struct fs_frame *f)
 		send_ack(f->type, f->seq);
 		return;
 	}
+	case FS_CMD_DEBUG_HANG:
+		if (!hal_debug_inputs())
+			break;
+		if (!body_len_is(f, 0))
+			return;
+		send_ack(f->type, f->seq);
+		g.hung = true;
+		return;
 	default:
 		break;
 	}
@@ -319,7 +328,7 @@ static void poll_rx(void)
 		g.rx_dropped_seen = dropped;
 		fs_decoder_init(&g.dec);
 	}
-	while (rx_tail != rx_head) {
+	while (rx_tail != rx_head && !g.hung) {
 		uint8_t tail = rx_tail;
 		uint8_t byte = rx_buf[tail];
 		rx_tail = (uint8_t)(tail + 1u);
@@ -385,6 +394,8 @@ static void poll_lights(uint32_t now)
 
 void fw_core_poll(void)
 {
+	if (g.hung)
+		return;
 	uint32_t now = hal_ms();
 	hal_wdt_kick();
 	poll_rx();

@@ -444,6 +444,7 @@ const char *fs_type_name(uint8_t type)
 	case FS_CMD_ABORT: return "ABORT";
 	case FS_CMD_STATUS: return "STATUS";
 	case FS_CMD_CLEAR_FAULT: return "CLEAR_FAULT";
+	case FS_CMD_DEBUG_HANG: return "DEBUG_HANG";
 	case FS_CMD_DEBUG_BUTTON: return "DEBUG_BUTTON";
 	case FS_RSP_ACK: return "ACK";
 	case FS_RSP_HELLO: return "HELLO_REPLY";

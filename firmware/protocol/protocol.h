@@ -56,6 +56,9 @@ enum fs_type {
 	FS_CMD_ABORT = 0x07,        /* body: none. lights off at once, ACK (+ EVT_REPORT aborted) */
 	FS_CMD_STATUS = 0x08,       /* body: none. reply FS_RSP_STATUS */
 	FS_CMD_CLEAR_FAULT = 0x09,  /* body: none. ACK; leaves the fault state for idle */
+	FS_CMD_DEBUG_HANG = 0x3d,   /* body: none. emulated boards only (else NACK UNKNOWN): ACK,
+	                               then the main loop stops working (and kicking the watchdog)
+	                               as if stuck, to exercise the watchdog path */
 	FS_CMD_DEBUG_BUTTON = 0x3e, /* body: u16 hold_ms. emulated boards only (else NACK UNKNOWN):
 	                               holds the button input low for hold_ms through the debounce */
 

@@ -55,6 +55,12 @@ static void check_replies(void)
 static void poll_and_check(uint32_t us)
 {
 	native_advance(us);
+	if (native_wdt_expired()) {
+		/* DEBUG_HANG starved the watchdog: the MCU resets. */
+		native_reset(FS_RESET_WATCHDOG);
+		native_set_debug_inputs(true);
+		fw_core_init();
+	}
 	fw_core_poll();
 	struct fs_status s;
 	fw_core_status(&s);
@@ -94,7 +100,8 @@ static void write_seeds(const char *dir)
 {
 	static const uint8_t cmds[] = { FS_CMD_HELLO, FS_CMD_GET_TIMING, FS_CMD_SET_TIMING,
 					FS_CMD_ARM, FS_CMD_DISARM, FS_CMD_FIRE, FS_CMD_ABORT,
-					FS_CMD_STATUS, FS_CMD_CLEAR_FAULT, FS_CMD_DEBUG_BUTTON };
+					FS_CMD_STATUS, FS_CMD_CLEAR_FAULT, FS_CMD_DEBUG_BUTTON,
+					FS_CMD_DEBUG_HANG };
 	for (size_t i = 0; i < sizeof(cmds); i++) {
 		uint8_t rec[2 + 2 + 1 + FS_TIMING_WIRE_LEN + 1];
 		size_t n = 0;
@@ -198,9 +205,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 				poll_and_check(100);
 		}
 	}
-	/* Let any sequence run out, then abort: whatever happened, everything ends dark. */
-	for (int i = 0; i < 50; i++)
-		poll_and_check(2000);
+	/* Let any sequence run out (or a hung loop reset), then abort: everything ends dark. */
+	for (int i = 0; i < 100; i++)
+		poll_and_check(10000);
 	struct fs_frame f;
 	uint8_t buf[FS_PROTO_MAX_FRAME];
 	size_t wl = 0;

@@ -536,6 +536,26 @@ static void test_watchdog_recovers_hung_loop(void **state)
 	fire_and_check(&t);
 }
 
+static void test_debug_hang_stops_the_loop(void **state)
+{
+	(void)state;
+	struct fs_frame rx[MAX_RX];
+	struct fs_frame r = transact_cmd(FS_CMD_DEBUG_HANG, 1);
+	expect_nack(&r, FS_ERR_UNKNOWN_CMD); /* not on a real board */
+	native_set_debug_inputs(true);
+	r = transact_cmd(FS_CMD_DEBUG_HANG, 2);
+	expect_ack(&r, FS_CMD_DEBUG_HANG);
+	/* Nothing is answered any more and the watchdog is starved. */
+	send_cmd(FS_CMD_HELLO, 3);
+	run_us((FW_WDT_TIMEOUT_MS + 10) * 1000u);
+	assert_int_equal(take_frames(rx, MAX_RX), 0);
+	assert_true(native_wdt_expired());
+	native_reset(FS_RESET_WATCHDOG);
+	fw_core_init();
+	assert_int_equal(status().state, FS_STATE_FAULT);
+	native_set_debug_inputs(false);
+}
+
 static void test_stuck_light_forced_off(void **state)
 {
 	(void)state;
@@ -665,6 +685,7 @@ int main(void)
 		cmocka_unit_test_setup(test_button_when_armed_starts_scan, boot),
 		cmocka_unit_test_setup(test_debug_button_on_emulated_board, boot),
 		cmocka_unit_test_setup(test_watchdog_recovers_hung_loop, boot),
+		cmocka_unit_test_setup(test_debug_hang_stops_the_loop, boot),
 		cmocka_unit_test_setup(test_stuck_light_forced_off, boot),
 		cmocka_unit_test_setup(test_late_timer_faults_lights_off, boot),
 		cmocka_unit_test_setup(test_abort_in_fault_keeps_fault_and_dark, boot),

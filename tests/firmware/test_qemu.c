@@ -2,7 +2,8 @@
  * The lm3s6965evb firmware image in QEMU with deterministic virtual time
  * (-icount shift=5,sleep=off). The test is the host: it talks to UART0 over a unix socket
  * with the shared protocol codec, sets a timing, fires, presses the button through the
- * board's UART debug command, and then checks what the emulator saw: QEMU's own trace of
+ * board's UART debug command, hangs the main loop (another debug command) and sees the
+ * watchdog bring it back in FAULT, and then checks what the emulator saw: QEMU's own trace of
  * the GPIO port (pl061_set_output) interleaved with its SysTick ticks (systick_timer_tick,
  * the firmware's 100 kHz clock). From that trace: every shutter edge of the 4 lines on the
  * same tick, the order and widths configured, the lights off at the end.
@@ -266,6 +267,38 @@ static void test_button_starts_scan_when_armed(void **state)
 	assert_int_equal(client.bad_frames, 0);
 }
 
+static void test_watchdog_recovers_hung_loop(void **state)
+{
+	(void)state;
+	struct fs_frame f, r;
+	/* The main loop stops kicking: the WDT interrupt darkens the lines, then it resets. */
+	assert_int_equal(fwc_cmd(&client, FS_CMD_DEBUG_HANG, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_ACK);
+	struct fs_boot b;
+	struct fs_fault x;
+	assert_int_equal(fwc_wait_event(&client, FS_EVT_BOOT, &f, TIMEOUT_MS), 1);
+	assert_int_equal(fs_boot_get(&f, &b), 0);
+	assert_int_equal(b.reset_cause, FS_RESET_WATCHDOG);
+	assert_int_equal(fwc_wait_event(&client, FS_EVT_FAULT, &f, TIMEOUT_MS), 1);
+	assert_int_equal(fs_fault_get(&f, &x), 0);
+	assert_int_equal(x.code, FS_FAULT_WATCHDOG);
+	assert_int_equal(x.lines, 0);
+
+	struct fs_status s;
+	assert_int_equal(fwc_cmd(&client, FS_CMD_STATUS, &r, TIMEOUT_MS), 1);
+	assert_int_equal(fs_status_get(&r, &s), 0);
+	assert_int_equal(s.state, FS_STATE_FAULT);
+	assert_int_equal(s.reset_cause, FS_RESET_WATCHDOG);
+	assert_int_equal(s.lines, 0);
+	assert_int_equal(fwc_cmd(&client, FS_CMD_FIRE, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_NACK);
+	assert_int_equal(fwc_cmd(&client, FS_CMD_CLEAR_FAULT, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_ACK);
+	assert_int_equal(fwc_cmd(&client, FS_CMD_STATUS, &r, TIMEOUT_MS), 1);
+	assert_int_equal(fs_status_get(&r, &s), 0);
+	assert_int_equal(s.state, FS_STATE_IDLE);
+}
+
 /* ---- from the emulator's trace ----------------------------------------------------------- */
 
 struct edge {
@@ -420,6 +453,7 @@ int main(void)
 		cmocka_unit_test(test_bad_frames_are_nacked),
 		cmocka_unit_test(test_set_timing_and_fire),
 		cmocka_unit_test(test_button_starts_scan_when_armed),
+		cmocka_unit_test(test_watchdog_recovers_hung_loop),
 		cmocka_unit_test(test_trace_lockstep_order_widths),
 	};
 	return cmocka_run_group_tests(tests, start_qemu, cleanup);

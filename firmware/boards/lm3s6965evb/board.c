@@ -8,6 +8,11 @@
  * `systick_timer_tick` trace is the firmware's clock, and the `pl061_set_output` trace of
  * port B shows each step's edges between two ticks.
  *
+ * Watchdog: WDT0 interrupts at the first time-out (the loop has not kicked for half the
+ * timeout): that interrupt drives every line low at once and leaves a note in .noinit RAM,
+ * and the second time-out resets. The note gives the reset cause where RESC does not (QEMU
+ * does not set RESC.WDT).
+ *
  * The booth button is not wired here: a headless emulator cannot press a GPIO input, so
  * this board accepts FS_CMD_DEBUG_BUTTON instead (hal_debug_inputs() is true).
  */
@@ -56,6 +61,9 @@
 #define WDT_LOAD 0x000u
 #define WDT_CTL 0x008u
 #define WDT_ICR 0x00cu
+#define WDT0_IRQ 18u
+#define NVIC_ICER0 0xe000e180u
+#define WDT_NOTE_MAGIC 0x57d6b17eu
 
 static volatile uint32_t ticks;
 static volatile uint32_t ms;
@@ -63,12 +71,15 @@ static volatile uint32_t sub_ms;
 static volatile bool cmp_armed;
 static volatile uint32_t cmp_at;
 static uint8_t reset_cause;
+__attribute__((section(".noinit"))) static volatile uint32_t wdt_note;
 
 void hal_init(void)
 {
 	uint32_t resc = REG32(SYSCTL_RESC);
 	REG32(SYSCTL_RESC) = 0;
-	if (resc & (1u << 3))
+	bool wdt_noted = wdt_note == WDT_NOTE_MAGIC;
+	wdt_note = 0;
+	if ((resc & (1u << 3)) || wdt_noted)
 		reset_cause = FS_RESET_WATCHDOG;
 	else if (resc & (1u << 4))
 		reset_cause = FS_RESET_SOFTWARE;
@@ -166,6 +177,7 @@ void hal_wdt_start(uint32_t timeout_ms)
 	/* The WDT interrupts at the first time-out and resets at the second: load half. */
 	REG32(WDT0 + WDT_LOAD) = timeout_ms / 2u * (SYSCLK_HZ / 1000u);
 	REG32(WDT0 + WDT_CTL) = (1u << 0) | (1u << 1); /* INTEN (starts it), RESEN */
+	cm_nvic_enable(WDT0_IRQ);
 }
 
 void hal_wdt_kick(void)
@@ -211,6 +223,14 @@ static void systick_isr(void)
 	}
 }
 
+/* First watchdog time-out: the main loop is stuck. Dark now, note why, let it reset. */
+static void wdt0_isr(void)
+{
+	hal_lines_write(0, FS_LINES_LIGHT | FS_LINES_SHUT);
+	wdt_note = WDT_NOTE_MAGIC;
+	REG32(NVIC_ICER0) = 1u << WDT0_IRQ; /* the interrupt stays asserted until the reset */
+}
+
 static void uart0_isr(void)
 {
 	/* Acknowledge first, then drain: a byte arriving meanwhile raises it again. */
@@ -250,6 +270,7 @@ __attribute__((section(".vectors"), used)) static const cm_vector vectors[16 + 4
 	[14] = fault_isr, /* PendSV */
 	[15] = systick_isr,
 	[16 + UART0_IRQ] = uart0_isr,
+	[16 + WDT0_IRQ] = wdt0_isr,
 };
 
 int main(void)
