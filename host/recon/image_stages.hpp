@@ -197,6 +197,8 @@ struct MatchParams {
 	/// Plausible depth of a matched point in camera a's frame, mm (rejects wrong slide copies).
 	double min_depth_mm = 150, max_depth_mm = 1500;
 	bool corners = true;		// also match the 4 corners of matched squares
+	/// Every corner of a matched square must be this close to its epipolar line, or the whole
+	/// square is refused (it is cut differently in the two views).
 	double max_corner_epipolar_px = 1.5;
 	/// Two connected parts of the decoded grids (one in each camera) show the same copy of the
 	/// slide when at least this fraction of their shared cells, and this many (or all when

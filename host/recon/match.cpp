@@ -188,6 +188,20 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 			continue;
 		}
 		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
+		// A square cut differently in the two views (an occluding contour, a shadow seen from one
+		// side) has corners off their epipolar lines; then none of its features is trusted.
+		bool corners = params.corners && sa.has_corners && sb.has_corners;
+		if (corners) {
+			int off = 0;
+			for (int k = 0; k < 4; k++) {
+				size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
+				off += g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px;
+			}
+			if (off) {
+				out.rejected_epipolar++;
+				continue;
+			}
+		}
 		PointMatch pm;
 		pm.square_a = int(i);
 		pm.square_b = j;
@@ -196,12 +210,7 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		pm.a = sa.centroid;
 		pm.b = sb.centroid;
 		out.matches.push_back(pm);
-		if (!params.corners || !sa.has_corners || !sb.has_corners)
-			continue;
-		for (int k = 0; k < 4; k++) {
-			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
-			if (g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px)
-				continue;
+		for (int k = 0; corners && k < 4; k++) {
 			pm.feature = kTopLeft + k;
 			pm.a = sa.corners[size_t(k)];
 			pm.b = sb.corners[size_t(k)];
