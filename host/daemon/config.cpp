@@ -254,8 +254,10 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 	}
 	if (c.camera_backend == "replay" && c.replay_dir.empty())
 		return Status::error(EINVAL, name + ": camera_backend = replay needs replay_dir");
-	if (c.button_source == ButtonSource::gpio && c.gpio_button_line < 0)
-		return Status::error(EINVAL, name + ": button_source = gpio needs gpio_button_line");
+	if (c.button_source == ButtonSource::gpio &&
+	    (c.gpio_button_line < 0 || c.gpio_led_line < 0 || c.gpio_mcu_reset_line < 0))
+		return Status::error(EINVAL, name + ": button_source = gpio needs gpio_button_line, gpio_led_line "
+					     "and gpio_mcu_reset_line");
 	Status id = validate_patient_id(c.booth_patient_id);
 	if (!id.ok())
 		return Status::error(EINVAL, name + ": booth_patient_id: " + id.message());

@@ -18,11 +18,11 @@ struct Config {
 	std::string spool_dir = "/var/spool/facescan";  // local queue + state; created if missing
 	std::string socket_path = "/run/facescan/facescand.sock";
 	std::string socket_group;                // group owning the socket (mode 0660); empty: ours
-	std::string camera_backend = "simulated"; // simulated | replay | libcamera | fake
+	std::string camera_backend = "libcamera"; // libcamera | replay | simulated | fake
 	int camera_count = 4;
 	std::string replay_dir;                  // capture set the replay backend plays back
 	std::string sim_scene = "default";       // scene the simulated backend renders
-	std::string serial_device = "fake";      // tty of the MCU, or "fake" (in-process MCU)
+	std::string serial_device = "/dev/ttyACM0"; // tty of the MCU, or "fake" (in-process MCU)
 	int serial_baud = 115200;
 	ButtonSource button_source = ButtonSource::mcu;
 	std::string gpio_chip = "gpiochip0";

@@ -421,6 +421,10 @@ struct Daemon::Impl {
 
 	void on_button()
 	{
+		if (cfg.button_source == ButtonSource::none) {
+			log(LOG_INFO, "button pressed: ignored (button_source = none)");
+			return;
+		}
 		if (cfg.mode != Mode::booth) {
 			log(LOG_INFO, "button pressed: ignored in clinic mode");
 			return;

@@ -2,6 +2,7 @@
 
 #include "daemon/driver_cameras.hpp"
 #include "daemon/fake_backends.hpp"
+#include "daemon/gpio_mcu.hpp"
 #include "daemon/serial_mcu.hpp"
 #include "daemon/sim_renderer.hpp"
 
@@ -15,6 +16,11 @@ Status make_backends(const Config &config, Backends *ret_backends)
 	else
 		b.mcu = std::make_unique<SerialMcu>(config.serial_device, config.serial_baud, config.mode == Mode::booth,
 						    config.mcu_timeout_ms);
+	if (config.button_source == ButtonSource::gpio) {
+		Status s = make_gpio_mcu(config, std::move(b.mcu), &b.mcu);
+		if (!s.ok())
+			return s;
+	}
 	if (config.camera_backend == "fake") {
 		b.cameras = std::make_unique<FakeCameras>(config.camera_count);
 	} else {

@@ -5,6 +5,9 @@
 #include "daemon/client.hpp"
 #include "daemon/daemon.hpp"
 #include "daemon/fake_backends.hpp"
+#include "daemon/gpio_mcu.hpp"
+#include "facescan/gpio.h"
+#include "facescan/gpio_fake.h"
 #include "daemon/log.hpp"
 
 #include <chrono>
@@ -46,7 +49,7 @@ struct Rig {
 	std::unique_ptr<Daemon> d;
 	std::thread loop;
 
-	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0)
+	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0, fscan_gpio *gpio = nullptr)
 	{
 		char t[] = "/tmp/facescand-test-XXXXXX";
 		assert_non_null(mkdtemp(t));
@@ -73,6 +76,8 @@ struct Rig {
 		cams = c.get();
 		recon = r.get();
 		b.mcu = std::move(m);
+		if (gpio)
+			b.mcu = std::make_unique<GpioMcu>(std::move(b.mcu), gpio);
 		b.cameras = std::move(c);
 		b.recon = std::move(r);
 		d = std::make_unique<Daemon>(cfg, std::move(b));
@@ -322,6 +327,32 @@ static void test_booth_button(void **)
 	assert_no_log_mentions("BOOTH-7");
 }
 
+static void test_gpio_button_and_led(void **)
+{
+	fscan_gpio_config g{};
+	g.chip = "fake";
+	g.button_line = 3;
+	g.led_line = 4;
+	g.reset_line = 5;
+	fscan_gpio *gpio = nullptr;
+	assert_int_equal(fscan_gpio_create(&fscan_gpio_fake_ops, &g, &gpio), 0);
+	Rig rig(Mode::booth, 0, gpio);
+	// The MCU's own button input is ignored when the booth button is a GPIO line.
+	rig.mcu->press_button();
+	std::this_thread::sleep_for(std::chrono::milliseconds(200));
+	assert_int_equal(rig.mcu->fired(), 0);
+	json armed = rig.ask({{"cmd", "scan"}, {"patient", "GPIO-1"}});
+	assert_string_equal(armed["state"].get<std::string>().c_str(), "armed");
+	assert_int_equal(fscan_gpio_fake_output(gpio, FSCAN_GPIO_LED), 1); // LED on while armed
+	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
+	assert_int_equal(fscan_gpio_fake_button(gpio, false), 0);
+	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu->fired() == 1);
+	assert_true(rig.wait_state(State::idle));
+	assert_int_equal(rig.mcu->fired(), 1);
+	assert_int_equal(fscan_gpio_fake_output(gpio, FSCAN_GPIO_LED), 0);
+	assert_string_equal(rig.ask({{"cmd", "last"}})["last"]["state"].get<std::string>().c_str(), "delivered");
+}
+
 static void test_mcu_unplugged_mid_scan(void **)
 {
 	Rig rig;
@@ -413,6 +444,7 @@ int main()
 		cmocka_unit_test(test_socket_mode_and_busy),
 		cmocka_unit_test(test_malformed_and_oversize),
 		cmocka_unit_test(test_booth_button),
+		cmocka_unit_test(test_gpio_button_and_led),
 		cmocka_unit_test(test_mcu_unplugged_mid_scan),
 		cmocka_unit_test(test_mcu_unplugged_while_idle),
 		cmocka_unit_test(test_camera_timeout),
