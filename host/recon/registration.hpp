@@ -1,0 +1,51 @@
+// Stage 8: registration of the partial models (seed paper §4). Consecutive pairs share a
+// camera: pair (0,1) and pair (1,2) both see camera 1, so a point whose match used camera-1
+// square s, feature f in one model and the same square and feature in the other is the same
+// physical grid point. Each model is moved onto the reference model (the middle pair by
+// default) by the rigid R, T minimising the paper's D = 1/n Σ ||p_i − (R q_i + T)||²
+// (Umeyama / SVD), after trimming correspondences far off the first fit.
+#pragma once
+
+#include "common/status.hpp"
+#include "recon/types.hpp"
+
+#include <vector>
+
+namespace facescan::recon {
+
+struct RegistrationParams {
+	int reference = -1;	    // index of the model that stays fixed; -1 = the middle one
+	int min_points = 6;	    // fewer shared points: the model stays where triangulation put it
+	double outlier_factor = 3.0; // refit without pairs farther than factor * median residual
+	double outlier_floor_mm = 0.5; // ... but never trim pairs closer than this
+	// Apply the fit only when it lowers D by at least this fraction: with an exact calibration
+	// a 6-parameter fit to noisy points only chases the noise (it lowers D by ~2/n) and would
+	// tilt the far side of the model.
+	double min_improvement = 0.1;
+};
+
+struct RegistrationPair {
+	int model = -1, onto = -1;   // model index moved onto model `onto`
+	int shared = 0, inliers = 0; // correspondences, and those kept for the final fit
+	double d_before = 0, d_after = 0; // the paper's D over the inliers, mm²
+	double d_before_all = 0, d_after_all = 0; // over all correspondences, mm²
+	cv::Matx33d R = cv::Matx33d::eye();
+	cv::Vec3d T = {0, 0, 0};
+	bool applied = false;	     // false: too few shared points or no real improvement
+};
+
+/// Correspondences between two models sharing a camera: indices (i in a, j in b) of points
+/// that are the same square and feature seen in the common camera.
+std::vector<std::pair<int, int>> shared_points(const PartialModel &a, const PartialModel &b);
+
+/// Least-squares rigid motion with p ≈ R q + T. -EINVAL with fewer than 3 points or a
+/// degenerate (collinear) set.
+Status rigid_fit(const std::vector<cv::Point3d> &q, const std::vector<cv::Point3d> &p, cv::Matx33d *ret_R,
+		 cv::Vec3d *ret_T);
+
+/// Registers the chain of models in place (points transformed). One RegistrationPair per
+/// non-reference model.
+Status register_models(std::vector<PartialModel> *models, const RegistrationParams &params,
+		       std::vector<RegistrationPair> *ret_pairs);
+
+} // namespace facescan::recon
