@@ -14,6 +14,7 @@ int pattern_main(int argc, char **argv);
 int scan_main(int argc, char **argv);
 int status_main(int argc, char **argv);
 int last_main(int argc, char **argv);
+int recon_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -22,6 +23,7 @@ static const Verb verbs[] = {
 	{"scan", "ask facescand for a scan of a patient and follow it", facescan::cli::scan_main},
 	{"status", "what facescand is doing now", facescan::cli::status_main},
 	{"last", "the outcome of the most recent scan", facescan::cli::last_main},
+	{"recon", "reconstruct a capture set into a textured Draco face mesh", facescan::cli::recon_main},
 };
 
 static void usage(FILE *out)

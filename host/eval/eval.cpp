@@ -1,0 +1,182 @@
+// Reconstruction accuracy metrics. See eval.hpp.
+#include "eval/eval.hpp"
+#include "recon/fusion.hpp"
+#include "recon/raster.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <unordered_map>
+
+namespace facescan::eval {
+
+double point_triangle_distance(const cv::Point3d &p, const cv::Point3d &a, const cv::Point3d &b,
+			       const cv::Point3d &c)
+{
+	const cv::Point3d ab = b - a, ac = c - a, ap = p - a;
+	const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+	if (d1 <= 0 && d2 <= 0)
+		return cv::norm(p - a);
+	const cv::Point3d bp = p - b;
+	const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+	if (d3 >= 0 && d4 <= d3)
+		return cv::norm(p - b);
+	const double vc = d1 * d4 - d3 * d2;
+	if (vc <= 0 && d1 >= 0 && d3 <= 0)
+		return cv::norm(p - (a + ab * (d1 / (d1 - d3))));
+	const cv::Point3d cp = p - c;
+	const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+	if (d6 >= 0 && d5 <= d6)
+		return cv::norm(p - c);
+	const double vb = d5 * d2 - d1 * d6;
+	if (vb <= 0 && d2 >= 0 && d6 <= 0)
+		return cv::norm(p - (a + ac * (d2 / (d2 - d6))));
+	const double va = d3 * d6 - d5 * d4;
+	if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+		return cv::norm(p - (b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)))));
+	const double denom = 1.0 / (va + vb + vc);
+	return cv::norm(p - (a + ab * (vb * denom) + ac * (vc * denom)));
+}
+
+struct MeshDistance::Impl {
+	std::vector<cv::Point3d> v;
+	std::vector<cv::Vec3i> t;
+	double cell = 1;
+	std::unordered_map<int64_t, std::vector<int>> grid;
+	static int64_t key(int64_t x, int64_t y, int64_t z)
+	{
+		return ((x + (1 << 20)) << 42) | ((y + (1 << 20)) << 21) | (z + (1 << 20));
+	}
+	int64_t coord(double x) const { return int64_t(std::floor(x / cell)); }
+};
+
+MeshDistance::MeshDistance(const std::vector<cv::Point3f> &positions, const std::vector<cv::Vec3i> &triangles,
+			   double cell_mm)
+	: impl_(std::make_unique<Impl>())
+{
+	impl_->v.assign(positions.begin(), positions.end());
+	impl_->t = triangles;
+	impl_->cell = std::max(cell_mm, 1e-3);
+	for (size_t i = 0; i < triangles.size(); ++i) {
+		const cv::Vec3i &tri = triangles[i];
+		cv::Point3d lo = impl_->v[size_t(tri[0])], hi = lo;
+		for (int k = 1; k < 3; ++k) {
+			const cv::Point3d &p = impl_->v[size_t(tri[k])];
+			lo = cv::Point3d(std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z));
+			hi = cv::Point3d(std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z));
+		}
+		for (int64_t x = impl_->coord(lo.x); x <= impl_->coord(hi.x); ++x)
+			for (int64_t y = impl_->coord(lo.y); y <= impl_->coord(hi.y); ++y)
+				for (int64_t z = impl_->coord(lo.z); z <= impl_->coord(hi.z); ++z)
+					impl_->grid[Impl::key(x, y, z)].push_back(int(i));
+	}
+}
+
+MeshDistance::~MeshDistance() = default;
+
+double MeshDistance::distance(const cv::Point3d &p, double max_mm) const
+{
+	const Impl &m = *impl_;
+	const int64_t cx = m.coord(p.x), cy = m.coord(p.y), cz = m.coord(p.z);
+	double best = std::numeric_limits<double>::infinity();
+	const int64_t reach = int64_t(std::ceil(max_mm / m.cell));
+	// Grow shells of cells until the nearest hit is closer than the shell's inner distance.
+	for (int64_t r = 0; r <= reach; ++r) {
+		if (best <= double(r - 1) * m.cell)
+			break;
+		for (int64_t x = cx - r; x <= cx + r; ++x)
+			for (int64_t y = cy - r; y <= cy + r; ++y)
+				for (int64_t z = cz - r; z <= cz + r; ++z) {
+					if (std::max({std::llabs(x - cx), std::llabs(y - cy), std::llabs(z - cz)}) != r)
+						continue;
+					auto it = m.grid.find(Impl::key(x, y, z));
+					if (it == m.grid.end())
+						continue;
+					for (int ti : it->second) {
+						const cv::Vec3i &t = m.t[size_t(ti)];
+						best = std::min(best, point_triangle_distance(p, m.v[size_t(t[0])],
+											   m.v[size_t(t[1])],
+											   m.v[size_t(t[2])]));
+					}
+				}
+	}
+	return best <= max_mm ? best : std::numeric_limits<double>::infinity();
+}
+
+Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
+		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result)
+{
+	if (recon.positions.empty() || recon.triangles.empty())
+		return Status::error(-EINVAL, "evaluate: the reconstruction has no triangles");
+	if (truth.positions.empty() || truth.triangles.empty())
+		return Status::error(-EINVAL, "evaluate: the ground truth has no triangles");
+	EvalResult r;
+	r.vertices = int(recon.positions.size());
+	r.triangles = int(recon.triangles.size());
+
+	// Reconstruction → truth.
+	double edge = 0;
+	for (const cv::Vec3i &t : truth.triangles)
+		edge += cv::norm(truth.positions[size_t(t[0])] - truth.positions[size_t(t[1])]);
+	edge /= double(truth.triangles.size());
+	const MeshDistance to_truth(truth.positions, truth.triangles, std::max(2.0 * edge, 1.0));
+	std::vector<double> d(recon.positions.size());
+	double ss = 0;
+	for (size_t i = 0; i < d.size(); ++i) {
+		d[i] = std::min(to_truth.distance(cv::Point3d(recon.positions[i]), params.max_search_mm),
+				params.max_search_mm);
+		ss += d[i] * d[i];
+	}
+	r.rms_mm = std::sqrt(ss / double(d.size()));
+	std::sort(d.begin(), d.end());
+	r.median_mm = d[d.size() / 2];
+	r.p95_mm = d[std::min(d.size() - 1, size_t(0.95 * double(d.size())))];
+	r.max_mm = d.back();
+
+	// Which truth points count: seen by >= min_cameras devices, lit by a projector if given.
+	std::vector<cv::Point3d> pts(truth.positions.begin(), truth.positions.end());
+	const std::vector<cv::Point3f> normals = recon::vertex_normals(truth.positions, truth.triangles);
+	auto seen_by = [&](const CameraModel &dev) {
+		const cv::Mat depth = recon::render_depth(dev, truth.positions, truth.triangles, params.depth_scale);
+		std::vector<char> v = recon::visible_in(dev, depth, params.depth_scale, pts,
+							params.occlusion_tolerance_mm);
+		const cv::Vec3d c = dev.centre();
+		for (size_t i = 0; i < pts.size(); ++i) {
+			const cv::Vec3d view = c - cv::Vec3d(pts[i]);
+			const cv::Vec3d n(normals[i].x, normals[i].y, normals[i].z);
+			if (n.dot(view) < params.min_cos * cv::norm(view))
+				v[i] = 0;
+		}
+		return v;
+	};
+	std::vector<int> cams_seeing(pts.size(), 0);
+	for (const CameraModel &cam : cameras) {
+		const std::vector<char> v = seen_by(cam);
+		for (size_t i = 0; i < pts.size(); ++i)
+			cams_seeing[i] += v[i];
+	}
+	std::vector<char> lit(pts.size(), projectors.empty() ? 1 : 0);
+	for (const CameraModel &proj : projectors) {
+		const std::vector<char> v = seen_by(proj);
+		for (size_t i = 0; i < pts.size(); ++i)
+			lit[i] |= v[i];
+	}
+	double rec_edge = 0;
+	for (const cv::Vec3i &t : recon.triangles)
+		rec_edge += cv::norm(recon.positions[size_t(t[0])] - recon.positions[size_t(t[1])]);
+	rec_edge /= double(recon.triangles.size());
+	const MeshDistance to_recon(recon.positions, recon.triangles, std::max(2.0 * rec_edge, 1.0));
+	int covered = 0;
+	r.truth_points = int(pts.size());
+	for (size_t i = 0; i < pts.size(); ++i) {
+		if (cams_seeing[i] < params.min_cameras || !lit[i])
+			continue;
+		r.truth_counted++;
+		covered += to_recon.distance(pts[i], params.completeness_mm) <= params.completeness_mm;
+	}
+	r.completeness = r.truth_counted ? double(covered) / r.truth_counted : 0;
+	*ret_result = r;
+	return {};
+}
+
+} // namespace facescan::eval

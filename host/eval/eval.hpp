@@ -1,0 +1,60 @@
+// Accuracy of a reconstruction against a ground-truth mesh (the simulator's ground_truth.ply):
+// vertex-to-surface distances and completeness. Used by the benchmark (`make bench`, via
+// `facescan evaluate`) and by the end-to-end test, which asserts bounds on a small scene.
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "recon/types.hpp"
+
+#include <memory>
+#include <vector>
+
+namespace facescan::eval {
+
+/// Distance from points to a triangle mesh, with a uniform grid over the triangles.
+class MeshDistance {
+public:
+	/// `cell_mm`: grid cell side (about the mesh's edge length is right).
+	MeshDistance(const std::vector<cv::Point3f> &positions, const std::vector<cv::Vec3i> &triangles,
+		     double cell_mm);
+	~MeshDistance();
+	MeshDistance(const MeshDistance &) = delete;
+	MeshDistance &operator=(const MeshDistance &) = delete;
+	/// Unsigned distance to the nearest triangle, searched out to `max_mm`; +inf beyond it.
+	double distance(const cv::Point3d &p, double max_mm) const;
+
+private:
+	struct Impl;
+	std::unique_ptr<Impl> impl_;
+};
+
+/// Distance from p to triangle (a, b, c) (Ericson, Real-Time Collision Detection, 5.1.5).
+double point_triangle_distance(const cv::Point3d &p, const cv::Point3d &a, const cv::Point3d &b,
+			       const cv::Point3d &c);
+
+struct EvalParams {
+	double completeness_mm = 1.0;	// a truth point counts as covered within this distance
+	int min_cameras = 2;		// truth points seen by fewer cameras are not counted
+	double min_cos = 0.1;		// a camera (or projector) must face the surface this much
+	double depth_scale = 0.5;	// z-buffer resolution for visibility, relative to the device
+	double occlusion_tolerance_mm = 1.0;
+	double max_search_mm = 20;	// distances beyond this count as this (outliers)
+};
+
+struct EvalResult {
+	double rms_mm = 0, median_mm = 0, p95_mm = 0, max_mm = 0; // reconstruction vertex → truth
+	double completeness = 0;	// fraction of counted truth points within completeness_mm
+	int truth_points = 0;		// truth vertices
+	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)
+	int vertices = 0, triangles = 0;
+};
+
+/// Compares `recon` with `truth` (both world mm). Truth points are the truth mesh's vertices
+/// that at least `min_cameras` cameras see unoccluded and front-facing — and, when
+/// `projectors` is not empty, that at least one projector lights (the pattern can only be
+/// measured where it falls). -EINVAL for an empty mesh.
+Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
+		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result);
+
+} // namespace facescan::eval

@@ -1,0 +1,246 @@
+// The reconstruction pipeline. See pipeline.hpp.
+#include "recon/pipeline.hpp"
+
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+
+namespace facescan::recon {
+
+namespace {
+
+class Timer {
+public:
+	explicit Timer(std::vector<StageTime> *out) : out_(out), start_(now()), first_(start_) {}
+	void lap(const char *name)
+	{
+		const double t = now();
+		out_->push_back({name, (t - start_) * 1e3});
+		start_ = t;
+	}
+	void total() { out_->push_back({"total", (now() - first_) * 1e3}); }
+
+private:
+	static double now()
+	{
+		return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+	}
+	std::vector<StageTime> *out_;
+	double start_, first_;
+};
+
+Status check_input(const CaptureSet &set, const ReconParams &params)
+{
+	const size_t n = set.calibration.cameras.size();
+	if (n < 2)
+		return Status::error(-EINVAL, "calibration has " + std::to_string(n) +
+						      " camera(s); reconstruction needs at least 2");
+	if (set.frames.size() != n)
+		return Status::error(-EINVAL, "capture set has " + std::to_string(set.frames.size()) +
+						      " frames for " + std::to_string(n) + " calibrated cameras");
+	if (!set.textures.empty() && set.textures.size() != n)
+		return Status::error(-EINVAL, "capture set has " + std::to_string(set.textures.size()) +
+						      " texture frames for " + std::to_string(n) + " cameras");
+	for (size_t c = 0; c < n; ++c) {
+		const cv::Mat &f = set.frames[c];
+		const CameraModel &cam = set.calibration.cameras[c];
+		const std::string who = "camera " + std::to_string(c);
+		if (f.empty() || f.type() != CV_8UC3)
+			return Status::error(-EINVAL, who + ": frame is empty or not 8-bit 3-channel");
+		if (f.size() != cam.size)
+			return Status::error(-EINVAL, who + ": frame is " + std::to_string(f.cols) + "x" +
+							      std::to_string(f.rows) + " but the calibration says " +
+							      std::to_string(cam.size.width) + "x" +
+							      std::to_string(cam.size.height));
+		if (!set.textures.empty() && set.textures[c].size() != cam.size)
+			return Status::error(-EINVAL, who + ": texture frame size differs from the calibration");
+		cv::Scalar mean, stddev;
+		cv::meanStdDev(f, mean, stddev);
+		const double sd = std::max({stddev[0], stddev[1], stddev[2]});
+		if (sd < params.min_frame_stddev) {
+			const double m = (mean[0] + mean[1] + mean[2]) / 3;
+			const char *what = m > 200 ? "all white" : m < 55 ? "all black" : "uniform";
+			return Status::error(-EINVAL, who + ": frame is " + what + " (mean " +
+							      std::to_string(int(m)) + ", std dev " +
+							      cv::format("%.2f", sd) + "): no pattern to decode");
+		}
+	}
+	return {};
+}
+
+} // namespace
+
+Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
+		   ReconReport *ret_report)
+{
+	ReconReport report;
+	report.scan_id = set.meta.scan_id;
+	report.pattern_id = pattern.id;
+	Timer timer(&report.stages);
+	Status s = check_input(set, params);
+	if (!s.ok())
+		return s;
+	const std::vector<CameraModel> &cams = set.calibration.cameras;
+	const size_t n = cams.size();
+
+	// Stages 1-3 and 5, one camera per task.
+	std::vector<CameraDetections> dets(n);
+	std::vector<Status> det_status(n);
+	cv::parallel_for_(cv::Range(0, int(n)), [&](const cv::Range &r) {
+		for (int c = r.start; c < r.end; ++c) {
+			dets[size_t(c)].camera = c;
+			det_status[size_t(c)] = detect_squares(set.frames[size_t(c)], pattern, params.detect,
+							       &dets[size_t(c)]);
+		}
+	});
+	for (size_t c = 0; c < n; ++c) {
+		if (!det_status[c].ok())
+			return Status::error(det_status[c].code(),
+					     "camera " + std::to_string(c) + ": " + det_status[c].message());
+		CameraReport cr;
+		cr.camera = int(c);
+		cr.detected = dets[c].detected;
+		cr.decoded = dets[c].decoded;
+		cr.corrected = dets[c].corrected;
+		cr.rejected = dets[c].rejected;
+		for (const Square &sq : dets[c].squares)
+			cr.with_corners += sq.has_corners;
+		report.cameras.push_back(cr);
+		if (cr.decoded < params.min_decoded_squares)
+			return Status::error(-ENODATA, "camera " + std::to_string(c) + ": no pattern found (" +
+							       std::to_string(cr.detected) + " squares, " +
+							       std::to_string(cr.decoded) + " decoded, need " +
+							       std::to_string(params.min_decoded_squares) + ")");
+	}
+	timer.lap("detect");
+
+	// Stage 4, consecutive pairs.
+	std::vector<PairMatches> matches(n - 1);
+	for (size_t p = 0; p + 1 < n; ++p) {
+		s = match_pair(dets[p], dets[p + 1], cams[p], cams[p + 1], pattern, params.match, &matches[p]);
+		if (!s.ok())
+			return Status::error(s.code(), "pair " + std::to_string(p) + "-" + std::to_string(p + 1) +
+							       ": " + s.message());
+		matches[p].cam_a = int(p);
+		matches[p].cam_b = int(p + 1);
+		PairReport pr;
+		pr.cam_a = int(p);
+		pr.cam_b = int(p + 1);
+		pr.matches = int(matches[p].matches.size());
+		for (const PointMatch &m : matches[p].matches)
+			(m.feature == kCentroid ? pr.centroid_matches : pr.corner_matches)++;
+		pr.rejected_epipolar = matches[p].rejected_epipolar;
+		pr.rejected_ambiguous = matches[p].rejected_ambiguous;
+		report.pairs.push_back(pr);
+	}
+	int all = 0, centroids = 0;
+	for (const PairReport &pr : report.pairs) {
+		all += pr.matches;
+		centroids += pr.centroid_matches;
+	}
+	report.corner_multiplier = centroids ? double(all) / centroids : 0;
+	timer.lap("match");
+
+	// Stage 6.
+	std::vector<PartialModel> models(n - 1);
+	for (size_t p = 0; p + 1 < n; ++p) {
+		s = triangulate_pair(matches[p], cams[p], cams[p + 1], params.triangulate, &models[p],
+				     &report.pairs[p].triangulate);
+		if (!s.ok())
+			return s;
+	}
+	timer.lap("triangulate");
+
+	// Stage 7.
+	for (size_t p = 0; p + 1 < n; ++p) {
+		s = mesh_partial(cams[p], cams[p + 1], params.meshing, &models[p], &report.pairs[p].meshing);
+		if (!s.ok())
+			return s;
+	}
+	timer.lap("mesh");
+
+	// Stage 8.
+	s = register_models(&models, params.registration, &report.registration);
+	if (!s.ok())
+		return s;
+	timer.lap("register");
+
+	// Stage 9.
+	Mesh mesh;
+	s = fuse_models(models, cams, params.fusion, &mesh, &report.fusion);
+	if (!s.ok())
+		return s;
+	timer.lap("fuse");
+
+	// Stage 10.
+	if (params.texture_enabled) {
+		s = texture_mesh(set.textures, set.frames, cams, params.texture, &mesh, &report.texture);
+		if (!s.ok())
+			return s;
+	}
+	timer.lap("texture");
+	timer.total();
+	report.vertices = int(mesh.positions.size());
+	report.triangles = int(mesh.triangles.size());
+	*ret_mesh = std::move(mesh);
+	if (ret_report)
+		*ret_report = std::move(report);
+	return {};
+}
+
+std::string report_json(const ReconReport &r)
+{
+	using nlohmann::json;
+	json j;
+	j["scan_id"] = r.scan_id;
+	j["pattern"] = r.pattern_id;
+	json times = json::object();
+	for (const StageTime &t : r.stages)
+		times[t.name] = t.ms;
+	j["time_ms"] = times;
+	json cams = json::array();
+	for (const CameraReport &c : r.cameras)
+		cams.push_back({{"camera", c.camera}, {"detected", c.detected}, {"decoded", c.decoded},
+				{"corrected", c.corrected}, {"rejected", c.rejected}, {"with_corners", c.with_corners}});
+	j["cameras"] = cams;
+	json pairs = json::array();
+	for (const PairReport &p : r.pairs)
+		pairs.push_back({{"cameras", {p.cam_a, p.cam_b}},
+				 {"matches", p.matches},
+				 {"centroid_matches", p.centroid_matches},
+				 {"corner_matches", p.corner_matches},
+				 {"rejected_epipolar", p.rejected_epipolar},
+				 {"rejected_ambiguous", p.rejected_ambiguous},
+				 {"triangulated", p.triangulate.kept},
+				 {"dropped_reprojection", p.triangulate.dropped_reprojection},
+				 {"dropped_depth", p.triangulate.dropped_depth},
+				 {"mean_reprojection_px", p.triangulate.mean_reprojection_px},
+				 {"triangles", p.meshing.kept},
+				 {"triangles_dropped_long", p.meshing.dropped_long},
+				 {"triangles_dropped_grazing", p.meshing.dropped_grazing},
+				 {"median_edge_mm", p.meshing.median_edge_mm}});
+	j["pairs"] = pairs;
+	json reg = json::array();
+	for (const RegistrationPair &p : r.registration)
+		reg.push_back({{"model", p.model}, {"onto", p.onto}, {"shared", p.shared}, {"inliers", p.inliers},
+			       {"D_before_mm2", p.d_before}, {"D_after_mm2", p.d_after},
+			       {"D_before_all_mm2", p.d_before_all}, {"D_after_all_mm2", p.d_after_all},
+			       {"applied", p.applied},
+			       {"T_mm", {p.T[0], p.T[1], p.T[2]}}});
+	j["registration"] = reg;
+	j["fusion"] = {{"input_points", r.fusion.input_points}, {"vertices", r.fusion.vertices},
+		       {"merged", r.fusion.merged}, {"triangles", r.fusion.triangles},
+		       {"median_edge_mm", r.fusion.meshing.median_edge_mm}};
+	j["texture"] = {{"charts", r.texture.charts},
+			{"untextured_triangles", r.texture.untextured},
+			{"vertex_colours", r.texture.vertex_colours},
+			{"atlas", {r.texture.atlas.width, r.texture.atlas.height}}};
+	j["corner_multiplier"] = r.corner_multiplier;
+	j["vertices"] = r.vertices;
+	j["triangles"] = r.triangles;
+	return j.dump(2) + "\n";
+}
+
+} // namespace facescan::recon

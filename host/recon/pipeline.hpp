@@ -1,0 +1,80 @@
+// The reconstruction pipeline: capture set → textured face mesh, and a report of what each
+// stage did and how long it took. Runs the stages in order, times them, does no file I/O
+// (the CLI `facescan recon` and the daemon read and write at the edges).
+//
+//   detect (per camera, stages 1-3, 5) → match (per pair, 4) → triangulate (6) → mesh (7)
+//   → register (8) → fuse (9) → texture (10)
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "pattern/pattern.hpp"
+#include "recon/fusion.hpp"
+#include "recon/image_stages.hpp"
+#include "recon/meshing.hpp"
+#include "recon/registration.hpp"
+#include "recon/texture.hpp"
+#include "recon/triangulate.hpp"
+#include "recon/types.hpp"
+
+#include <string>
+#include <vector>
+
+namespace facescan::recon {
+
+struct ReconParams {
+	DetectParams detect;
+	MatchParams match;
+	TriangulateParams triangulate;
+	MeshingParams meshing;
+	RegistrationParams registration;
+	FusionParams fusion;
+	TextureParams texture;
+	bool texture_enabled = true;
+	/// A camera whose frame yields fewer decoded squares than this has "no pattern".
+	int min_decoded_squares = 12;
+	/// Frames whose intensity standard deviation is below this are blank (all white/black).
+	double min_frame_stddev = 2.0;
+};
+
+struct StageTime {
+	std::string name;
+	double ms = 0;
+};
+
+struct CameraReport {
+	int camera = -1;
+	int detected = 0, decoded = 0, corrected = 0, rejected = 0, with_corners = 0;
+};
+
+struct PairReport {
+	int cam_a = -1, cam_b = -1;
+	int matches = 0, centroid_matches = 0, corner_matches = 0;
+	int rejected_epipolar = 0, rejected_ambiguous = 0;
+	TriangulateStats triangulate;
+	MeshingStats meshing;
+};
+
+struct ReconReport {
+	std::string scan_id, pattern_id;
+	std::vector<StageTime> stages; // in order; "total" last
+	std::vector<CameraReport> cameras;
+	std::vector<PairReport> pairs;
+	std::vector<RegistrationPair> registration;
+	FusionStats fusion;
+	TextureStats texture;
+	/// Matched points (centroids + corners) over matched centroids: the paper's ~5x.
+	double corner_multiplier = 0;
+	int vertices = 0, triangles = 0;
+};
+
+/// Reconstructs the face of `set` projected with `pattern`. Checks its input first: at least
+/// two cameras, one frame per camera matching its calibrated size, no blank frame, and a
+/// pattern found in every frame; each failure names the camera and the cause.
+Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
+		   ReconReport *ret_report);
+
+/// The report as JSON text (keys documented in docs/recon.md).
+std::string report_json(const ReconReport &report);
+
+} // namespace facescan::recon
