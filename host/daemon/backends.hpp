@@ -91,6 +91,12 @@ public:
 	virtual int count() const = 0;
 	/// Readies every camera for the next externally triggered frame (before the MCU fires).
 	virtual Status prepare() = 0;
+	/// Whether prepare() is cheap enough for the daemon's loop at arm time (then requests are
+	/// queued before a booth button can fire the sequence). False: the worker prepares.
+	virtual bool prepare_at_arm() const
+	{
+		return true;
+	}
 	/// Collects the frames of the fired sequence. -ETIMEDOUT if one is missing.
 	virtual Status collect(const TriggerReport &report, int timeout_ms, Capture *ret_capture) = 0;
 };

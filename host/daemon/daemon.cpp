@@ -401,6 +401,15 @@ struct Daemon::Impl {
 			fail_scan("armed", "arm: " + s.message(), true);
 			return Status::error(EAGAIN, "unavailable: " + s.message());
 		}
+		// Requests queued before the trigger: in booth mode the firmware fires on the press.
+		if (be.cameras->prepare_at_arm()) {
+			s = be.cameras->prepare();
+			if (!s.ok()) {
+				be.mcu->abort();
+				fail_scan("armed", "cameras: " + s.message(), true);
+				return Status::error(EAGAIN, "unavailable: cameras: " + s.message());
+			}
+		}
 		arm_deadline = Clock::now() + std::chrono::milliseconds(cfg.arm_timeout_ms);
 		progress("armed", cfg.mode == Mode::booth ? "armed, waiting for the button" : "armed");
 		return Status();
@@ -518,7 +527,7 @@ struct Daemon::Impl {
 		// capture
 		auto t0 = Clock::now();
 		Capture cap;
-		Status s = be.cameras->prepare();
+		Status s = be.cameras->prepare_at_arm() ? Status() : be.cameras->prepare();
 		if (!s.ok()) {
 			post({Msg::Kind::failed, 0, "cameras: " + s.message(), true, {{"stage", "capturing"}}});
 			return;
