@@ -15,6 +15,7 @@ int scan_main(int argc, char **argv);
 int status_main(int argc, char **argv);
 int last_main(int argc, char **argv);
 int recon_main(int argc, char **argv);
+int simulate_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -24,6 +25,7 @@ static const Verb verbs[] = {
 	{"status", "what facescand is doing now", facescan::cli::status_main},
 	{"last", "the outcome of the most recent scan", facescan::cli::last_main},
 	{"recon", "reconstruct a capture set into a textured Draco face mesh", facescan::cli::recon_main},
+	{"simulate", "render a capture set of the simulated booth", facescan::cli::simulate_main},
 };
 
 static void usage(FILE *out)

@@ -9,6 +9,11 @@ const char *const kDefaultRigYaml = R"yaml(%YAML:1.0
 # Devices are placed at azimuth (about +y; 0 = in front on +z, positive towards +x),
 # elevation (up) and distance from their target point, looking at it with +y up.
 # Every key is documented in docs/simulator.md.
+# The projectors are rolled 90 degrees (portrait): each 4:3 slide then covers a tall strip of
+# the face (about 120 mm wide x 160 mm high) and the three strips tile the face from ear to ear
+# with ~95 % coverage and ~11-18 % overlap at the seams. Upright (landscape) slides cannot cover
+# the face's height without overlapping most of it (rigs/landscape.yaml: ~73 % coverage).
+# In the camera images the slide's "up" therefore points to the image right.
 supersample: 1
 cameras:
   - { name: cam0, azimuth_deg: -60.0, elevation_deg: 0.0, distance_mm: 550.0,
@@ -33,16 +38,16 @@ cameras:
       focus_mm: 550.0, blur_px: 0.5, defocus_px_per_100mm: 0.8, exposure: 1.0 }
 projectors:
   - { name: proj0, azimuth_deg: -45.0, elevation_deg: 12.0, distance_mm: 600.0,
-      target_mm: [ -45.0, 5.0, 40.0 ], roll_deg: 0.0, size: [ 1024, 768 ],
-      focal_px: [ 2900.0, 2900.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
+      target_mm: [ -90.0, -25.0, 20.0 ], roll_deg: 90.0, size: [ 1024, 768 ],
+      focal_px: [ 3614.0, 3614.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
       defocus_px_per_100mm: 1.5, gamma: 2.2 }
   - { name: proj1, azimuth_deg: 0.0, elevation_deg: 12.0, distance_mm: 600.0,
-      target_mm: [ 0.0, 5.0, 60.0 ], roll_deg: 0.0, size: [ 1024, 768 ],
-      focal_px: [ 2900.0, 2900.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
+      target_mm: [ 0.0, -25.0, 60.0 ], roll_deg: 90.0, size: [ 1024, 768 ],
+      focal_px: [ 3840.0, 3840.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
       defocus_px_per_100mm: 1.5, gamma: 2.2 }
   - { name: proj2, azimuth_deg: 45.0, elevation_deg: 12.0, distance_mm: 600.0,
-      target_mm: [ 45.0, 5.0, 40.0 ], roll_deg: 0.0, size: [ 1024, 768 ],
-      focal_px: [ 2900.0, 2900.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
+      target_mm: [ 90.0, -25.0, 20.0 ], roll_deg: 90.0, size: [ 1024, 768 ],
+      focal_px: [ 3614.0, 3614.0 ], power: 1.6, focus_mm: 600.0, blur_px: 0.6,
       defocus_px_per_100mm: 1.5, gamma: 2.2 }
 sensor:
   full_well_e: 9000.0

@@ -162,7 +162,7 @@ struct Scene {
 	cv::Vec3d position = {0, 0, 0};		// head origin in world mm
 	cv::Vec3f skin = {0.62f, 0.43f, 0.34f}; // linear albedo of cheek skin
 	double noise_scale = 1.0;		// multiplies the rig sensor's noise
-	double backdrop_z = -350;		// dark backdrop plane z (mm); NAN = none
+	double backdrop_radius_mm = 900;	// the booth's dark wall: a cylinder about +y; NAN = none
 	cv::Vec3f backdrop_albedo = {0.04f, 0.04f, 0.045f};
 	HeadSpec head;
 };
@@ -221,6 +221,10 @@ struct SimOptions {
 /// scan_id "sim-<scene>-<seed>" and the pattern id) and the truth. Either output may be null.
 Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint64_t seed,
 		CaptureSet *ret_set, SimTruth *ret_truth, const SimOptions &options = SimOptions());
+
+/// A contact sheet: the pattern frames in a row above the texture frames, each scaled to
+/// `tile_width` pixels wide, camera names written on the tiles. 8-bit BGR.
+cv::Mat contact_sheet(const CaptureSet &set, int tile_width);
 
 /// Writes the capture set plus ground_truth.ply (the head, world mm) into `dir`.
 Status write_simulated_set(const std::string &dir, const CaptureSet &set, const SimTruth &truth);

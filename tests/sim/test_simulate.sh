@@ -1,0 +1,29 @@
+#!/bin/sh
+# facescan simulate end to end at a small scale: writes a complete capture set that the
+# capture-set reader accepts (checked through the files it must contain and their sizes).
+set -u
+bin=${FACESCAN_BIN:?}/facescan
+out=$(mktemp -d /tmp/facescan-sim.XXXXXX)
+trap 'rm -rf "$out"' EXIT
+fail=0
+"$bin" simulate --scene turned --seed 3 --scale 0.2 --out "$out/set" --contact-sheet "$out/sheet.png" || {
+	echo "FAIL: simulate exited $?"; exit 1; }
+for f in calibration.yaml capture.json ground_truth.ply cam0.png cam1.png cam2.png cam3.png \
+	cam0_texture.png cam1_texture.png cam2_texture.png cam3_texture.png; do
+	[ -s "$out/set/$f" ] || { echo "FAIL: $f missing or empty"; fail=1; }
+done
+[ -s "$out/sheet.png" ] || { echo "FAIL: no contact sheet"; fail=1; }
+grep -q '"pattern"' "$out/set/capture.json" || { echo "FAIL: capture.json has no pattern"; fail=1; }
+grep -q 'cam3_K' "$out/set/calibration.yaml" || { echo "FAIL: calibration.yaml has no cam3_K"; fail=1; }
+grep -q '^cam3_size' "$out/set/calibration.yaml" && grep -A1 -E '^cam3_size' "$out/set/calibration.yaml" | grep -q 320 ||
+	{ echo "FAIL: cam3_size is not the scaled 320x240"; grep -A2 cam3_size "$out/set/calibration.yaml"; fail=1; }
+head -c 3 "$out/set/ground_truth.ply" | grep -q ply || { echo "FAIL: ground_truth.ply is not a PLY"; fail=1; }
+# Errors: unknown scene → 2, unreadable rig file → 1.
+"$bin" simulate --scene nosuch --out "$out/x" 2>/dev/null; rc=$?
+[ $rc -eq 2 ] || { echo "FAIL: unknown scene exited $rc, want 2"; fail=1; }
+"$bin" simulate --config /nonexistent.yaml --out "$out/x" 2>/dev/null; rc=$?
+[ $rc -eq 1 ] || { echo "FAIL: missing rig exited $rc, want 1"; fail=1; }
+"$bin" simulate --scale 9 --out "$out/x" 2>/dev/null; rc=$?
+[ $rc -eq 2 ] || { echo "FAIL: --scale 9 exited $rc, want 2"; fail=1; }
+[ $fail -eq 0 ] && echo "ok: facescan simulate wrote a complete capture set"
+exit $fail

@@ -1,0 +1,165 @@
+// The booth: named scenes, and rig + scene + pattern → capture set + ground truth.
+#include "sim/internal.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+#include <cmath>
+
+namespace facescan::sim {
+
+std::vector<std::string> scene_names()
+{
+	return {"default", "turned", "noisy", "dark"};
+}
+
+Status scene_by_name(const std::string &name, Scene *ret_scene)
+{
+	Scene s;
+	s.name = name;
+	if (name == "default") {
+	} else if (name == "turned") {
+		s.yaw_deg = 15;
+	} else if (name == "noisy") {
+		s.noise_scale = 4;
+	} else if (name == "dark") {
+		s.skin = cv::Vec3f(0.23f, 0.13f, 0.085f);
+	} else {
+		std::string all;
+		for (const std::string &n : scene_names())
+			all += (all.empty() ? "" : ", ") + n;
+		return Status::error(-EINVAL, "unknown scene '" + name + "' (scenes: " + all + ")");
+	}
+	*ret_scene = s;
+	return Status();
+}
+
+// The booth's wall: an inward-facing cylinder about +y around the head.
+static Mesh make_booth_wall(double radius, double height)
+{
+	Mesh m;
+	const int seg = 256;
+	for (int i = 0; i <= seg; i++) {
+		double a = 2 * M_PI * i / seg;
+		cv::Vec3f n(float(-std::sin(a)), 0.f, float(-std::cos(a)));
+		for (double y : {-height / 2, height / 2}) {
+			m.vertices.push_back(cv::Vec3f(float(radius * std::sin(a)), float(y - 100), float(radius * std::cos(a))));
+			m.normals.push_back(n);
+		}
+	}
+	for (int i = 0; i < seg; i++) {
+		int a = 2 * i, b = a + 1, c = a + 2, d = a + 3;
+		m.triangles.push_back(cv::Vec3i(a, c, b));
+		m.triangles.push_back(cv::Vec3i(b, c, d));
+	}
+	return m;
+}
+
+static cv::Matx33d rotation(double yaw_deg, double pitch_deg)
+{
+	double y = yaw_deg * M_PI / 180, p = pitch_deg * M_PI / 180;
+	cv::Matx33d Ry(std::cos(y), 0, std::sin(y), 0, 1, 0, -std::sin(y), 0, std::cos(y));
+	cv::Matx33d Rx(1, 0, 0, 0, std::cos(p), -std::sin(p), 0, std::sin(p), std::cos(p));
+	return Ry * Rx;
+}
+
+Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint64_t seed,
+		CaptureSet *ret_set, SimTruth *ret_truth, const SimOptions &options)
+{
+	auto t0 = std::chrono::steady_clock::now();
+	if (rig.cameras.empty())
+		return Status::error(-EINVAL, "simulate: the rig has no cameras");
+	if (!(scene.noise_scale >= 0 && scene.noise_scale <= 1000))
+		return Status::error(-EINVAL, "simulate: scene noise_scale out of range");
+	Surface head;
+	Status st = make_head(scene.head, scene.skin, &head.mesh);
+	if (!st.ok())
+		return st;
+	transform_mesh(rotation(scene.yaw_deg, scene.pitch_deg), scene.position, &head.mesh);
+	head.id = 1;
+	head.specular = 0.06f; // the sheen of skin
+	head.shininess = 24;
+	std::vector<Surface> surfaces{head};
+	if (std::isfinite(scene.backdrop_radius_mm)) {
+		if (scene.backdrop_radius_mm < 200)
+			return Status::error(-EINVAL, "simulate: backdrop radius must be at least 200 mm");
+		Surface back;
+		back.mesh = make_booth_wall(scene.backdrop_radius_mm, 2400);
+		back.albedo = scene.backdrop_albedo;
+		back.id = 2;
+		surfaces.push_back(back);
+	}
+	Rig r = rig;
+	r.sensor.noise_scale *= scene.noise_scale;
+	RenderOptions ro;
+	ro.texture = options.texture_frames;
+	ro.truth = options.truth_maps;
+	cv::Mat slide = rig.projectors.empty() ? cv::Mat() : render_slide(pattern);
+	RenderResult res;
+	st = render_views(r, surfaces, slide, ro, seed, &res);
+	if (!st.ok())
+		return st;
+	double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+	if (ret_set) {
+		CaptureSet set;
+		set.calibration = rig_calibration(rig);
+		set.frames = std::move(res.frames);
+		set.textures = std::move(res.textures);
+		set.meta.scan_id = "sim-" + scene.name + "-" + std::to_string(seed);
+		set.meta.pattern_id = pattern.id;
+		set.meta.timestamps_ns.assign(rig.cameras.size(), 0.0);
+		for (const SimCamera &c : rig.cameras)
+			set.meta.exposure_us.push_back(8000.0 * c.exposure);
+		*ret_set = std::move(set);
+	}
+	if (ret_truth) {
+		SimTruth t;
+		t.head = std::move(surfaces[0].mesh);
+		t.views = std::move(res.truth);
+		t.render_seconds = secs;
+		*ret_truth = std::move(t);
+	}
+	return Status();
+}
+
+Status write_simulated_set(const std::string &dir, const CaptureSet &set, const SimTruth &truth)
+{
+	Status st = write_capture_set(dir, set);
+	if (!st.ok())
+		return st;
+	return write_ply(dir + "/ground_truth.ply", truth.head);
+}
+
+} // namespace facescan::sim
+
+namespace facescan::sim {
+
+cv::Mat contact_sheet(const CaptureSet &set, int tile_width)
+{
+	if (set.frames.empty() || tile_width < 16)
+		return cv::Mat();
+	const cv::Mat &f0 = set.frames[0];
+	int th = int(std::lround(double(tile_width) * f0.rows / std::max(1, f0.cols)));
+	std::vector<cv::Mat> rows;
+	for (const std::vector<cv::Mat> *imgs : {&set.frames, &set.textures}) {
+		if (imgs->empty())
+			continue;
+		std::vector<cv::Mat> tiles;
+		for (size_t i = 0; i < imgs->size(); i++) {
+			cv::Mat t;
+			cv::resize((*imgs)[i], t, cv::Size(tile_width, th), 0, 0, cv::INTER_AREA);
+			std::string label = "cam" + std::to_string(i) + (imgs == &set.textures ? " texture" : "");
+			cv::putText(t, label, cv::Point(8, 22), cv::FONT_HERSHEY_SIMPLEX, 0.6,
+				    cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+			tiles.push_back(t);
+		}
+		cv::Mat row;
+		cv::hconcat(tiles, row);
+		rows.push_back(row);
+	}
+	cv::Mat sheet;
+	cv::vconcat(rows, sheet);
+	return sheet;
+}
+
+} // namespace facescan::sim
