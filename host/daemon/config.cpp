@@ -182,6 +182,17 @@ const std::vector<Key> &keys()
 		 int_in(&Config::texture_exposure_us, 10, 1000000), int_of(&Config::texture_exposure_us)},
 		{"recon_backend", "pipeline (host/recon) | fake (a fixed test mesh)",
 		 word_in(&Config::recon_backend, {"pipeline", "fake"}), str_of(&Config::recon_backend)},
+		{"calibration_file", "calibration.yaml of the booth (facescan calibrate), for libcamera frames",
+		 path_in(&Config::calibration_file, false), str_of(&Config::calibration_file)},
+		{"pattern_id", "id of the slide the projectors throw; empty: this build's default pattern",
+		 [](Config &c, const std::string &v) -> std::string {
+			 for (char ch : v)
+				 if (!(isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_' || ch == '.'))
+					 return "'" + v + "' is not a pattern id";
+			 c.pattern_id = v;
+			 return "";
+		 },
+		 str_of(&Config::pattern_id)},
 		{"min_free_mb", "free space the share must have, else the scan is spooled",
 		 int_in(&Config::min_free_mb, 0, 1000000), int_of(&Config::min_free_mb)},
 		{"spool_retry_ms", "how often spooled scans are offered to the share",

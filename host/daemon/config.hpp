@@ -38,6 +38,8 @@ struct Config {
 	int exposure_us = 8000;
 	int texture_exposure_us = 8000;
 	std::string recon_backend = "pipeline";  // pipeline | fake
+	std::string calibration_file = "/etc/facescan/calibration.yaml"; // for cameras without a set
+	std::string pattern_id;                  // the booth's slide; empty: the default pattern
 	int min_free_mb = 64;                    // the share needs this much room or scans are spooled
 	int spool_retry_ms = 5000;               // how often spooled scans are offered to the share
 	int stage_timeout_ms = 300000;           // a stage running longer stops the watchdog pings

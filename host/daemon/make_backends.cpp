@@ -3,6 +3,7 @@
 #include "daemon/driver_cameras.hpp"
 #include "daemon/fake_backends.hpp"
 #include "daemon/gpio_mcu.hpp"
+#include "daemon/pipeline_recon.hpp"
 #include "daemon/serial_mcu.hpp"
 #include "daemon/sim_renderer.hpp"
 
@@ -33,11 +34,14 @@ Status make_backends(const Config &config, Backends *ret_backends)
 		}
 		b.cameras = std::move(cams);
 	}
-	if (config.recon_backend == "fake")
+	if (config.recon_backend == "fake") {
 		b.recon = std::make_unique<FakeReconstructor>();
-	else
-		return Status::error(ENOTSUP, "recon_backend = pipeline: the reconstruction library has no "
-					      "capture-set → mesh entry point in this build; use recon_backend = fake");
+	} else {
+		if (config.camera_backend == "fake")
+			return Status::error(EINVAL, "recon_backend = pipeline cannot reconstruct the fake cameras' "
+						     "synthetic frames; use recon_backend = fake with camera_backend = fake");
+		b.recon = std::make_unique<PipelineReconstructor>(config.calibration_file, config.pattern_id);
+	}
 	*ret_backends = std::move(b);
 	return Status();
 }

@@ -1,0 +1,90 @@
+#include "daemon/pipeline_recon.hpp"
+
+#include "capture/capture_set.hpp"
+#include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
+#include "pattern/pattern.hpp"
+#include "recon/pipeline.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <chrono>
+#include <unistd.h>
+
+namespace facescan::daemon {
+
+Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_output)
+{
+	CaptureSet set;
+	Status s;
+	if (!capture.source_dir.empty()) {
+		s = read_capture_set(capture.source_dir, &set);
+	} else {
+		s = read_calibration(calibration_path_, &set.calibration);
+		for (const Frame &f : capture.frames) {
+			auto &v = f.texture ? set.textures : set.frames;
+			if (v.size() <= static_cast<size_t>(f.camera))
+				v.resize(static_cast<size_t>(f.camera) + 1);
+			v[static_cast<size_t>(f.camera)] = f.image;
+		}
+		set.meta.pattern_id = pattern_id_;
+	}
+	if (!s.ok())
+		return s;
+	Pattern pattern;
+	s = set.meta.pattern_id.empty() ? default_pattern(SlideSpec(), &pattern)
+					: pattern_from_id(set.meta.pattern_id, SlideSpec(), &pattern);
+	if (!s.ok())
+		return s;
+	recon::Mesh mesh;
+	recon::ReconReport report;
+	s = recon::reconstruct(set, pattern, recon::ReconParams(), &mesh, &report);
+	if (!s.ok())
+		return s;
+	ReconOutput out;
+	auto t0 = std::chrono::steady_clock::now();
+	std::vector<char> drc;
+	s = mesh_io::encode_draco(mesh, mesh_io::DracoOptions(), &drc);
+	if (!s.ok())
+		return s;
+	out.drc.assign(drc.begin(), drc.end());
+	cv::Mat tex = mesh.texture;
+	if (tex.empty() && !set.textures.empty())
+		tex = set.textures[0];
+	if (tex.empty() && !set.frames.empty())
+		tex = set.frames[0];
+	std::vector<uchar> png;
+	if (!tex.empty() && !cv::imencode(".png", tex, png))
+		return Status::error(EIO, "texture: PNG encoding failed");
+	out.png.assign(png.begin(), png.end());
+	double encode_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	for (const recon::StageTime &st : report.stages)
+		if (st.name != "total")
+			out.stage_ms.emplace_back(st.name, st.ms);
+	out.stage_ms.emplace_back("encode", encode_ms);
+	out.vertices = static_cast<long>(mesh.positions.size());
+	out.faces = static_cast<long>(mesh.triangles.size());
+	out.quality = nlohmann::json::parse(recon::report_json(report), nullptr, false);
+	if (out.quality.is_discarded())
+		out.quality = nlohmann::json::object();
+	const std::string truth_path = capture.source_dir + "/ground_truth.ply";
+	if (access(truth_path.c_str(), R_OK) == 0) {
+		recon::Mesh truth;
+		eval::EvalResult e;
+		s = mesh_io::read_ply(truth_path, &truth);
+		if (s.ok())
+			s = eval::evaluate(mesh, truth, set.calibration.cameras, {}, eval::EvalParams(), &e);
+		if (s.ok())
+			out.quality["accuracy"] = {{"rms_mm", e.rms_mm},
+						   {"median_mm", e.median_mm},
+						   {"p95_mm", e.p95_mm},
+						   {"completeness", e.completeness},
+						   {"against", "simulator ground truth"}};
+		else
+			out.quality["accuracy"] = {{"error", s.message()}};
+	}
+	*ret_output = std::move(out);
+	return Status();
+}
+
+} // namespace facescan::daemon
