@@ -174,15 +174,18 @@ Status fuse_models(const std::vector<PartialModel> &models, const std::vector<Ca
 	for (size_t k = 0; k < groups.size(); ++k) {
 		std::vector<cv::Point3d> copies;
 		std::vector<double> w;
-		bool multi = false;
+		bool multi = false, centroid = false;
 		for (int g : groups[k]) {
 			const size_t m = size_t(model_of[size_t(g)]);
+			const size_t i = size_t(g) - offset[m];
+			centroid |= i < models[m].sources.size() && models[m].sources[i].feature == kCentroid;
 			copies.push_back(models[m].points[size_t(g) - offset[m]]);
 			w.push_back(border[size_t(g)]);
 			multi |= model_of[size_t(g)] != model_of[size_t(groups[k][0])];
 		}
 		fused[k] = blend(copies, w, params.border_floor_mm);
 		stats.merged += multi;
+		stats.squares += centroid;
 	}
 
 	// One sheet over a view sphere: centre behind the face (from the centroid, away from the

@@ -25,6 +25,7 @@ struct FusionStats {
 	int input_points = 0;	// over all models
 	int vertices = 0;	// fused mesh vertices (unreferenced ones dropped)
 	int merged = 0;		// vertices averaged from two or more models
+	int squares = 0;	// distinct projected squares (fused centroid points) on the face
 	int triangles = 0;
 	MeshingStats meshing;
 };

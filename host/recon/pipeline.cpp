@@ -231,7 +231,7 @@ std::string report_json(const ReconReport &r)
 			       {"T_mm", {p.T[0], p.T[1], p.T[2]}}});
 	j["registration"] = reg;
 	j["fusion"] = {{"input_points", r.fusion.input_points}, {"vertices", r.fusion.vertices},
-		       {"merged", r.fusion.merged}, {"triangles", r.fusion.triangles},
+		       {"merged", r.fusion.merged}, {"squares", r.fusion.squares}, {"triangles", r.fusion.triangles},
 		       {"median_edge_mm", r.fusion.meshing.median_edge_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},
@@ -240,6 +240,8 @@ std::string report_json(const ReconReport &r)
 	j["corner_multiplier"] = r.corner_multiplier;
 	j["vertices"] = r.vertices;
 	j["triangles"] = r.triangles;
+	if (r.peak_rss_kb > 0)
+		j["peak_rss_kb"] = r.peak_rss_kb;
 	return j.dump(2) + "\n";
 }
 

@@ -66,6 +66,7 @@ struct ReconReport {
 	/// Matched points (centroids + corners) over matched centroids: the paper's ~5x.
 	double corner_multiplier = 0;
 	int vertices = 0, triangles = 0;
+	long peak_rss_kb = 0; // filled by the caller (getrusage) when it wants it reported
 };
 
 /// Reconstructs the face of `set` projected with `pattern`. Checks its input first: at least

@@ -16,6 +16,7 @@ int status_main(int argc, char **argv);
 int last_main(int argc, char **argv);
 int recon_main(int argc, char **argv);
 int simulate_main(int argc, char **argv);
+int evaluate_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -26,6 +27,7 @@ static const Verb verbs[] = {
 	{"last", "the outcome of the most recent scan", facescan::cli::last_main},
 	{"recon", "reconstruct a capture set into a textured Draco face mesh", facescan::cli::recon_main},
 	{"simulate", "render a capture set of the simulated booth", facescan::cli::simulate_main},
+	{"evaluate", "compare a reconstructed mesh with a simulated set's ground truth", facescan::cli::evaluate_main},
 };
 
 static void usage(FILE *out)

@@ -7,6 +7,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <getopt.h>
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -133,6 +134,9 @@ int recon_main(int argc, char **argv)
 		}
 		outputs.push_back({ply, bytes});
 	}
+	rusage ru {};
+	if (getrusage(RUSAGE_SELF, &ru) == 0)
+		report.peak_rss_kb = ru.ru_maxrss;
 	if (!report_path.empty())
 		outputs.push_back({report_path, recon::report_json(report)});
 	for (size_t i = 0; i < outputs.size(); ++i) {

@@ -1,0 +1,71 @@
+// host/eval: point-triangle distance, and metrics of a known offset surface.
+#include "eval/eval.hpp"
+
+#include "cmocka.hpp"
+#include "synthetic_rig.hpp"
+
+#include <cstdio>
+
+using namespace facescan;
+
+static void test_point_triangle_distance(void **)
+{
+	const cv::Point3d a(0, 0, 0), b(10, 0, 0), c(0, 10, 0);
+	assert_true(std::fabs(eval::point_triangle_distance({2, 2, 3}, a, b, c) - 3) < 1e-12);     // face
+	assert_true(std::fabs(eval::point_triangle_distance({-3, -4, 0}, a, b, c) - 5) < 1e-12);   // vertex a
+	assert_true(std::fabs(eval::point_triangle_distance({5, -2, 0}, a, b, c) - 2) < 1e-12);    // edge ab
+	assert_true(std::fabs(eval::point_triangle_distance({6, 6, 0}, a, b, c) - std::sqrt(2.0)) < 1e-12); // edge bc
+}
+
+// A UV-sphere patch facing +z of radius r.
+static recon::Mesh sphere(double r)
+{
+	recon::Mesh m;
+	const int nu = 120, nv = 80;
+	for (int j = 0; j <= nv; ++j)
+		for (int i = 0; i <= nu; ++i) {
+			const double el = (-60 + 120.0 * j / nv) * CV_PI / 180, az = (-80 + 160.0 * i / nu) * CV_PI / 180;
+			m.positions.emplace_back(float(r * std::cos(el) * std::sin(az)), float(r * std::sin(el)),
+						 float(r * std::cos(el) * std::cos(az) - 60));
+		}
+	for (int j = 0; j < nv; ++j)
+		for (int i = 0; i < nu; ++i) {
+			const int a = j * (nu + 1) + i;
+			m.triangles.emplace_back(a, a + 1, a + nu + 2);
+			m.triangles.emplace_back(a, a + nu + 2, a + nu + 1);
+		}
+	return m;
+}
+
+static void test_offset_surface(void **)
+{
+	const recon::Mesh truth = sphere(85), recon = sphere(85.2);
+	eval::EvalResult r;
+	assert_true(eval::evaluate(recon, truth, synth::ring(), {}, eval::EvalParams(), &r).ok());
+	std::printf("offset 0.2 mm: RMS %.4f median %.4f p95 %.4f, completeness %.3f of %d\n", r.rms_mm, r.median_mm,
+		    r.p95_mm, r.completeness, r.truth_counted);
+	assert_true(std::fabs(r.rms_mm - 0.2) < 0.01);
+	assert_true(std::fabs(r.median_mm - 0.2) < 0.01);
+	assert_true(r.truth_counted > r.truth_points / 2 && r.truth_counted < r.truth_points);
+	assert_true(r.completeness > 0.99);
+	eval::EvalParams tight;
+	tight.completeness_mm = 0.1;
+	assert_true(eval::evaluate(recon, truth, synth::ring(), {}, tight, &r).ok());
+	assert_true(r.completeness < 0.01);
+	// Half the reconstruction missing: completeness drops to about the half the cameras see.
+	recon::Mesh half = recon;
+	half.triangles.resize(half.triangles.size() / 2);
+	assert_true(eval::evaluate(half, truth, synth::ring(), {}, eval::EvalParams(), &r).ok());
+	std::printf("half: completeness %.3f\n", r.completeness);
+	assert_true(r.completeness > 0.3 && r.completeness < 0.7);
+	assert_int_equal(eval::evaluate(recon::Mesh(), truth, synth::ring(), {}, {}, &r).code(), -EINVAL);
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_point_triangle_distance),
+		cmocka_unit_test(test_offset_surface),
+	};
+	return cmocka_run_group_tests(tests, nullptr, nullptr);
+}

@@ -1,0 +1,158 @@
+// facescan evaluate: accuracy of a reconstructed mesh against a simulated capture set's truth.
+#include "capture/capture_set.hpp"
+#include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
+#include "sim/sim.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <getopt.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <string>
+
+namespace facescan::cli {
+
+static void evaluate_usage(FILE *out)
+{
+	std::fprintf(out,
+		     "usage: facescan evaluate MESH CAPTURE_DIR [--rig FILE] [--json OUT.json]\n"
+		     "\n"
+		     "Compares MESH (.drc or .ply, mm) with CAPTURE_DIR/ground_truth.ply (a simulated\n"
+		     "capture set): distance of every mesh vertex to the true surface (RMS, median, p95,\n"
+		     "max, mm) and completeness: the fraction of true surface points seen by >= 2 cameras\n"
+		     "and lit by a projector that lie within 1 mm of the mesh.\n"
+		     "  --rig FILE       the simulator rig the set was rendered with (projector poses);\n"
+		     "                   default: the built-in default rig\n"
+		     "  --within MM      completeness distance (default 1 mm)\n"
+		     "  --json OUT.json  also write the numbers as JSON\n"
+		     "  --report R.json  the recon report of MESH (facescan recon --report), and\n"
+		     "  --markdown NAME  print one row of docs/benchmarks.md's table for it instead\n");
+}
+
+int evaluate_main(int argc, char **argv)
+{
+	static const option options[] = {{"rig", required_argument, nullptr, 'r'},
+					 {"json", required_argument, nullptr, 'j'},
+					 {"within", required_argument, nullptr, 'w'},
+					 {"report", required_argument, nullptr, 'R'},
+					 {"markdown", required_argument, nullptr, 'm'},
+					 {"help", no_argument, nullptr, 'h'},
+					 {nullptr, 0, nullptr, 0}};
+	std::string rig_path, json_path, report_path, row_name;
+	eval::EvalParams params;
+	optind = 1;
+	for (int opt; (opt = getopt_long(argc, argv, "h", options, nullptr)) != -1;) {
+		switch (opt) {
+		case 'r':
+			rig_path = optarg;
+			break;
+		case 'j':
+			json_path = optarg;
+			break;
+		case 'R':
+			report_path = optarg;
+			break;
+		case 'm':
+			row_name = optarg;
+			break;
+		case 'w': {
+			char *end = nullptr;
+			params.completeness_mm = std::strtod(optarg, &end);
+			if (!*optarg || *end || !(params.completeness_mm > 0)) {
+				std::fprintf(stderr, "facescan evaluate: --within must be a positive number of mm\n");
+				return 2;
+			}
+			break;
+		}
+		case 'h':
+			evaluate_usage(stdout);
+			return 0;
+		default:
+			evaluate_usage(stderr);
+			return 2;
+		}
+	}
+	if (optind + 2 != argc) {
+		std::fprintf(stderr, "facescan evaluate: need MESH and CAPTURE_DIR\n");
+		evaluate_usage(stderr);
+		return 2;
+	}
+	const std::string mesh_path = argv[optind], dir = argv[optind + 1];
+	recon::Mesh mesh, truth;
+	const bool drc = mesh_path.size() > 4 && mesh_path.compare(mesh_path.size() - 4, 4, ".drc") == 0;
+	Status s = drc ? mesh_io::read_draco(mesh_path, &mesh) : mesh_io::read_ply(mesh_path, &mesh);
+	if (s.ok())
+		s = mesh_io::read_ply(dir + "/ground_truth.ply", &truth);
+	Calibration cal;
+	if (s.ok())
+		s = read_calibration(dir + "/calibration.yaml", &cal);
+	sim::Rig rig = sim::default_rig();
+	if (s.ok() && !rig_path.empty())
+		s = sim::load_rig(rig_path, &rig);
+	if (!s.ok()) {
+		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+		return 1;
+	}
+	std::vector<CameraModel> projectors;
+	for (const sim::SimProjector &p : rig.projectors) {
+		CameraModel m;
+		m.K = p.K;
+		m.R = p.R;
+		m.T = p.T;
+		m.size = p.size;
+		projectors.push_back(m);
+	}
+	eval::EvalResult r;
+	s = eval::evaluate(mesh, truth, cal.cameras, projectors, params, &r);
+	if (!s.ok()) {
+		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+		return 1;
+	}
+	if (!row_name.empty()) {
+		std::string text;
+		s = mesh_io::read_file_bytes(report_path, &text);
+		nlohmann::json rep = nlohmann::json::parse(text, nullptr, false);
+		if (!s.ok() || rep.is_discarded() || !rep.is_object()) {
+			std::fprintf(stderr, "facescan evaluate: --report '%s': %s\n", report_path.c_str(),
+				     s.ok() ? "not a recon report" : s.message().c_str());
+			return 1;
+		}
+		const nlohmann::json t = rep.value("time_ms", nlohmann::json::object());
+		auto ms = [&t](const char *k) { return t.value(k, 0.0); };
+		double d_before = 0, d_after = 0;
+		for (const auto &reg : rep.value("registration", nlohmann::json::array())) {
+			d_before = std::max(d_before, reg.value("D_before_mm2", 0.0));
+			d_after = std::max(d_after, reg.value("D_after_mm2", 0.0));
+		}
+		std::printf("| %s | %.3f | %.3f | %.3f | %.1f %% | %d | %d | %.1fx | %.4f / %.4f | "
+			    "%.0f / %.0f / %.0f / %.0f / %.0f / %.0f / %.0f | **%.0f** | %.0f |\n",
+			    row_name.c_str(), r.rms_mm, r.median_mm, r.p95_mm, 100.0 * r.completeness,
+			    r.vertices, r.triangles, rep.value("corner_multiplier", 0.0), d_before, d_after,
+			    ms("detect"), ms("match"), ms("triangulate"), ms("mesh"), ms("register"), ms("fuse"),
+			    ms("texture"), ms("total"), rep.value("peak_rss_kb", 0.0) / 1024.0);
+		return 0;
+	}
+	std::printf("vertices %d, triangles %d\n", r.vertices, r.triangles);
+	std::printf("vertex-to-surface: RMS %.3f mm, median %.3f mm, p95 %.3f mm, max %.3f mm\n", r.rms_mm,
+		    r.median_mm, r.p95_mm, r.max_mm);
+	std::printf("completeness: %.1f %% of %d truth points (seen by >= 2 cameras and lit) within %.2f mm\n",
+		    100.0 * r.completeness, r.truth_counted, params.completeness_mm);
+	if (!json_path.empty()) {
+		const nlohmann::json j = {{"vertices", r.vertices},	   {"triangles", r.triangles},
+					  {"rms_mm", r.rms_mm},		   {"median_mm", r.median_mm},
+					  {"p95_mm", r.p95_mm},		   {"max_mm", r.max_mm},
+					  {"completeness", r.completeness}, {"truth_points", r.truth_points},
+					  {"truth_counted", r.truth_counted}};
+		const std::string text = j.dump(2) + "\n";
+		s = write_file_atomic(json_path, text.data(), text.size());
+		if (!s.ok()) {
+			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+			return 1;
+		}
+	}
+	return 0;
+}
+
+} // namespace facescan::cli
