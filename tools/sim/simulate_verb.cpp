@@ -153,7 +153,7 @@ int simulate_main(int argc, char **argv)
 	}
 	st = sim::write_simulated_set(out, set, truth);
 	if (st.ok() && !sheet.empty())
-		st = write_image_atomic(sheet, sim::contact_sheet(set, 400));
+		st = write_image_atomic(sheet, sim::contact_sheet(set, 360));
 	if (!st.ok()) {
 		std::fprintf(stderr, "facescan simulate: %s\n", st.message().c_str());
 		return 1;
