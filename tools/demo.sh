@@ -2,8 +2,8 @@
 # make demo: one scan through the whole booth on this machine, with whatever of the chain exists.
 #
 #   trigger firmware   QEMU (lm3s6965evb image, UART on a pty), else the native build on a pty
-#   cameras            the booth simulator (a rendered capture set, replayed by the camera driver),
-#                      else the daemon's fake cameras
+#   cameras            the booth simulator through the camera driver's simulated backend, else
+#                      the daemon's fake cameras
 #   facescand          booth mode; the simulated button press goes through the firmware
 #   reconstruction     host/recon's pipeline when facescand accepts it, else the fake mesh
 #   output             ./out/share/<patient>/<UTC time>_<scan-id>.{drc,png,json}
@@ -66,34 +66,22 @@ else
 	stood_in="$stood_in\n  firmware:        in-process fake MCU (no QEMU image and no native firmware build)"
 fi
 
-# ---- 2. the cameras ---------------------------------------------------------------------------
-cameras=fake replay=""
-if fs --help | grep -q '^  simulate'; then
-	t0=$(date +%s%N)
-	if fs simulate --scene default --seed 1 --out "$out/capture" >"$out/simulate.log" 2>&1; then
-		cameras=replay replay="$out/capture"
-		ran="$ran\n  cameras:         booth simulator, default scene, $(ms_since "$t0") ms to render; frames served by the camera driver's replay backend"
-	else
-		stood_in="$stood_in\n  cameras:         fake (facescan simulate failed: $(tail -1 "$out/simulate.log"))"
-	fi
-else
-	stood_in="$stood_in\n  cameras:         fake synthetic frames (the booth simulator's 'facescan simulate' is not on main yet)"
-fi
+# ---- 2. the cameras: facescand renders through the camera driver's simulated backend ------------
+# (tools/sim behind drivers/camera's camera_sim.h), or uses its fake cameras when that is missing.
 
 # ---- 3. facescand -----------------------------------------------------------------------------
-write_conf() { # recon backend
+write_conf() { # cameras recon
 	cat >"$out/run/facescand.conf" <<-CONF
 	mode = booth
 	share_dir = $out/share
 	spool_dir = $out/spool
 	socket_path = $FACESCAN_SOCKET
 	serial_device = $serial
-	camera_backend = $cameras
-	replay_dir = $replay
-	recon_backend = $1
+	camera_backend = $1
+	recon_backend = $2
+	sim_scene = default
 	min_free_mb = 0
-	mcu_timeout_ms = 3000
-	keep_captures = false
+	mcu_timeout_ms = 5000
 	CONF
 }
 start_daemon() {
@@ -106,16 +94,19 @@ start_daemon() {
 	done
 	return 1
 }
-recon=pipeline
-write_conf pipeline
+refusal() { sed -n 's/.*refusing to start: //p' "$out/facescand.log" | tail -1; }
+cameras=simulated recon=pipeline
+write_conf simulated pipeline
 if ! start_daemon; then
-	why=$(sed -n 's/.*refusing to start: //p' "$out/facescand.log" | tail -1)
-	recon=fake
-	write_conf fake
+	why=$(refusal)
+	cameras=fake recon=fake
+	write_conf fake fake
 	start_daemon || die "facescand did not start"
-	stood_in="$stood_in\n  reconstruction:  fake mesh (a fixed hemisphere): ${why:-pipeline refused}"
+	stood_in="$stood_in\n  cameras:         fake synthetic frames (simulated cameras refused: $why)"
+	stood_in="$stood_in\n  reconstruction:  fake mesh, a fixed hemisphere (the pipeline needs real or simulated frames)"
 else
-	ran="$ran\n  reconstruction:  host/recon pipeline"
+	ran="$ran\n  cameras:         booth simulator (tools/sim, scene 'default') through drivers/camera's simulated backend"
+	ran="$ran\n  reconstruction:  host/recon pipeline (recon::reconstruct), Draco by host/mesh_io, accuracy by host/eval"
 fi
 mcu=$(fs status | sed -n 's/^MCU: *//p')
 case $mcu in
@@ -137,8 +128,9 @@ native*)
 	fs scan --patient "$patient" --press --no-wait >/dev/null || die "facescand refused the scan"
 	how="simulated press over the MCU link (FS_CMD_DEBUG_BUTTON)" ;;
 esac
-for _ in $(seq 600); do
-	st=$(fs status --json | sed -n 's/^ *"state": "\([a-z]*\)".*/\1/p')
+for _ in $(seq 1800); do
+	kill -0 "$DPID" 2>/dev/null || { DPID=; die "facescand died during the scan (its last lines above)"; }
+	st=$(fs status --json 2>/dev/null | sed -n 's/^ *"state": "\([a-z]*\)".*/\1/p')
 	if [ "$st" = idle ] || [ "$st" = error ]; then
 		fs last --json | grep -q '^  "state": "\(delivered\|spooled\|failed\)"' && break
 	fi
@@ -153,18 +145,20 @@ sed -n 's/^.*scan [0-9a-f]*: \(\[[1-3]\/3\].*\)$/  progress:      \1/p' "$out/fa
 # ---- 5. summary -------------------------------------------------------------------------------
 meta=$(ls "$out"/share/"$patient"/*.json | head -1)
 num() { sed -n "s/^ *\"$1\": \([0-9.]*\),\{0,1\}$/\1/p" "$meta" | head -1; }
+top() { sed -n "s/^ \"$1\": \([0-9.]*\),\{0,1\}$/\1/p" "$meta" | head -1; } # top-level key
+mm() { printf '%.3f' "$(num "$1")"; }
 say ""
 say "summary"
 say "  mesh:          $(ls "$out"/share/"$patient"/*.drc) ($(wc -c <"$(ls "$out"/share/"$patient"/*.drc)") bytes)"
-say "  vertices:      $(num vertices), faces: $(num faces)"
+say "  vertices:      $(top vertices), faces: $(top faces)"
 say "  ms per stage:  capture $(num capture | cut -d. -f1), reconstruct $(num reconstruct | cut -d. -f1), write $(fs last --json | sed -n 's/^ *"write": \([0-9]*\).*/\1/p')"
 ticks=$(tr -d ' \n' <"$meta" | sed -n 's/.*"step_ticks":\[\([0-9,]*\)\].*/\1/p')
 [ -n "$ticks" ] && say "  trigger:       firmware step ticks $ticks (at $(num tick_hz) Hz); 4 shutters in one port write: $(grep -q '"shutters_in_lockstep": true' "$meta" && echo yes || echo no)"
 acc=$(sed -n 's/^ *"\(rms_mm\|accuracy_rms_mm\|mean_error_mm\)": \([0-9.]*\).*/\1 \2/p' "$meta" | head -1)
 if [ -n "$acc" ]; then
-	say "  accuracy:      $acc (against the simulator's ground truth)"
+	say "  accuracy:      RMS $(mm rms_mm) mm, median $(mm median_mm) mm, p95 $(mm p95_mm) mm, completeness $(mm completeness) (reconstructed vertices vs the simulator's ground-truth head)"
 else
-	say "  accuracy:      not measured (needs the simulator's ground truth and the real reconstruction)"
+	say "  accuracy:      not measured (needs simulated cameras, for the ground truth, and the real reconstruction)"
 fi
 say ""
 printf "what ran:$ran\n"

@@ -129,6 +129,8 @@ const std::vector<Key> &keys()
 		 path_in(&Config::replay_dir, true), str_of(&Config::replay_dir)},
 		{"sim_scene", "scene rendered by the simulated backend", word_in(&Config::sim_scene, {}),
 		 str_of(&Config::sim_scene)},
+		{"sim_scale_percent", "simulated camera resolution in % of the rig's (1600x1200 at 100)",
+		 int_in(&Config::sim_scale_percent, 10, 400), int_of(&Config::sim_scale_percent)},
 		{"serial_device", "tty of the trigger MCU, or 'fake' for the in-process MCU",
 		 [](Config &c, const std::string &v) -> std::string {
 			 if (v != "fake" && (v.empty() || v[0] != '/'))

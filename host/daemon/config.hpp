@@ -22,6 +22,7 @@ struct Config {
 	int camera_count = 4;
 	std::string replay_dir;                  // capture set the replay backend plays back
 	std::string sim_scene = "default";       // scene the simulated backend renders
+	int sim_scale_percent = 100;             // simulated camera resolution, % of the rig's
 	std::string serial_device = "/dev/ttyACM0"; // tty of the MCU, or "fake" (in-process MCU)
 	int serial_baud = 115200;
 	ButtonSource button_source = ButtonSource::mcu;

@@ -2,10 +2,12 @@
 
 #include "capture/capture_set.hpp"
 #include "facescan/camera.h"
+#include "facescan/camera_sim.h"
 
 #include <opencv2/imgproc.hpp>
 
 #include <cstring>
+#include <sys/stat.h>
 
 namespace facescan::daemon {
 
@@ -18,6 +20,14 @@ DriverCameras::DriverCameras(std::string backend, std::string source, int count,
 DriverCameras::~DriverCameras()
 {
 	fscan_camera_destroy(cam_);
+	fscan_sim_booth_destroy(booth_);
+}
+
+void DriverCameras::use_simulator(std::string scene, double scale, std::string work_dir)
+{
+	sim_scene_ = std::move(scene);
+	sim_scale_ = scale;
+	work_dir_ = std::move(work_dir);
 }
 
 void DriverCameras::set_renderer(RenderFn render, int width, int height, std::string calibration_id)
@@ -55,6 +65,24 @@ Status DriverCameras::open()
 	} else if (backend_ == "replay") {
 		ops = &fscan_camera_replay_ops;
 		p.source = source_.c_str();
+	} else if (backend_ == "simulated" && !sim_scene_.empty()) {
+		ops = &fscan_camera_sim_ops;
+		if (!booth_) {
+			fscan_sim_booth_params bp{};
+			bp.scene = sim_scene_.c_str();
+			bp.seed = 1;
+			bp.scale = sim_scale_;
+			int rc = fscan_sim_booth_create(&bp, &booth_);
+			if (rc < 0) {
+				std::string why = booth_ ? fscan_sim_booth_error(booth_) : std::strerror(-rc);
+				booth_ = nullptr;
+				return Status::error(-rc, "booth simulator: " + why);
+			}
+		}
+		int rc = fscan_sim_booth_camera_params(booth_, &p);
+		if (rc < 0)
+			return Status::error(-rc, "booth simulator: " + std::string(fscan_sim_booth_error(booth_)));
+		calibration_id_ = "simulated rig, scene " + sim_scene_;
 	} else if (backend_ == "simulated") {
 		if (!render_)
 			return Status::error(ENOTSUP, "simulated cameras: no renderer in this build");
@@ -155,6 +183,16 @@ Status DriverCameras::collect(const TriggerReport &report, int timeout_ms, Captu
 		fscan_frame_set_free(set);
 	}
 	c.meta = {{"backend", backend_}, {"shots", shots_}};
+	if (booth_) {
+		// The scan as a capture set (calibration, frames, ground truth) for the reconstruction.
+		const std::string dir = work_dir_ + "/simulated-capture";
+		::mkdir(work_dir_.c_str(), 0750);
+		int rc = fscan_sim_booth_write_last(booth_, dir.c_str());
+		if (rc < 0)
+			return Status::error(-rc, "booth simulator: " + std::string(fscan_sim_booth_error(booth_)));
+		c.source_dir = dir;
+		c.meta["scene"] = sim_scene_;
+	}
 	*ret_capture = std::move(c);
 	return Status();
 }

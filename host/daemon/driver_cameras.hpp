@@ -7,6 +7,7 @@
 
 struct fscan_camera;
 struct fscan_camera_ops;
+struct fscan_sim_booth;
 
 namespace facescan::daemon {
 
@@ -20,6 +21,14 @@ public:
 	DriverCameras(std::string backend, std::string source, int count, int exposure_us, int max_skew_us);
 	~DriverCameras() override;
 	void set_renderer(RenderFn render, int width, int height, std::string calibration_id);
+	/// "simulated" through the booth simulator (drivers/camera's camera_sim.h): each scan
+	/// renders `scene`; the rendered set (with ground truth) is written under work_dir for the
+	/// reconstruction.
+	void use_simulator(std::string scene, double scale, std::string work_dir);
+	bool prepare_at_arm() const override
+	{
+		return backend_ != "simulated"; // the simulator renders at arm: seconds, in the worker
+	}
 	Status open() override;
 	std::string backend_name() const override
 	{
@@ -41,6 +50,9 @@ private:
 	int width_ = 0, height_ = 0;
 	std::string calibration_id_;
 	fscan_camera *cam_ = nullptr;
+	fscan_sim_booth *booth_ = nullptr;
+	std::string sim_scene_, work_dir_;
+	double sim_scale_ = 0;
 	uint32_t shots_ = 2;
 	static int render_trampoline(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb,
 				     uint32_t width, uint32_t height, uint32_t stride, uint64_t *ret_timestamp_ns);

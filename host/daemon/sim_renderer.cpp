@@ -2,11 +2,10 @@
 
 namespace facescan::daemon {
 
-Status attach_simulator(const Config &, DriverCameras *)
+Status attach_simulator(const Config &config, DriverCameras *cameras)
 {
-	return Status::error(ENOTSUP, "camera_backend = simulated: the booth simulator's renderer "
-				      "(tools/sim render_views/simulate) is not in this build; use "
-				      "camera_backend = fake or replay");
+	cameras->use_simulator(config.sim_scene, config.sim_scale_percent / 100.0, config.spool_dir + "/work");
+	return Status();
 }
 
 } // namespace facescan::daemon
