@@ -261,7 +261,10 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 				for (int d = 0; d < 4; d++) {
 					int img_dir = cw[(cw_pos[d] + rot) % 4];
 					int j = sq[size_t(i)].neighbours[size_t(img_dir)];
-					s.neighbours[size_t(d)] = j >= 0 ? local[size_t(j)] : -1;
+					// A one-way link can point into another component (visited earlier):
+					// its local index belongs to that component's sub-vector.
+					s.neighbours[size_t(d)] =
+						j >= 0 && comp[size_t(j)] == comp[size_t(i)] ? local[size_t(j)] : -1;
 				}
 				// Slide corner k (TL, TR, BR, BL: clockwise) is image corner k + rot.
 				for (int k = 0; k < 4; k++)
