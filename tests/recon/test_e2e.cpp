@@ -1,0 +1,74 @@
+// End to end on the simulated booth: simulate the default scene (texture frames off, to keep the
+// test short) → reconstruct → compare with the ground truth within bounds.
+#include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
+#include "recon/pipeline.hpp"
+#include "sim/sim.hpp"
+
+#include "cmocka.hpp"
+
+#include <cstdio>
+
+using namespace facescan;
+
+static void test_default_scene(void **)
+{
+	const sim::Rig rig = sim::default_rig();
+	sim::Scene scene;
+	assert_true(sim::scene_by_name("default", &scene).ok());
+	Pattern pattern;
+	assert_true(default_pattern(SlideSpec(), &pattern).ok());
+	CaptureSet set;
+	sim::SimTruth truth;
+	sim::SimOptions options;
+	options.texture_frames = false;
+	const Status ss = sim::simulate(rig, scene, pattern, 1, &set, &truth, options);
+	assert_true(ss.ok());
+
+	recon::Mesh mesh;
+	recon::ReconReport report;
+	const Status s = recon::reconstruct(set, pattern, recon::ReconParams(), &mesh, &report);
+	if (!s.ok())
+		std::printf("reconstruct: %s\n", s.message().c_str());
+	assert_true(s.ok());
+	assert_true(report.texture.vertex_colours); // no texture frames: the colour fallback
+	assert_int_equal(mesh.colours.size(), mesh.positions.size());
+
+	recon::Mesh gt;
+	for (const cv::Vec3f &v : truth.head.vertices)
+		gt.positions.emplace_back(v[0], v[1], v[2]);
+	gt.triangles = truth.head.triangles;
+	std::vector<CameraModel> projectors;
+	for (const sim::SimProjector &p : rig.projectors) {
+		CameraModel m;
+		m.K = p.K;
+		m.R = p.R;
+		m.T = p.T;
+		m.size = p.size;
+		projectors.push_back(m);
+	}
+	eval::EvalResult r;
+	assert_true(eval::evaluate(mesh, gt, set.calibration.cameras, projectors, eval::EvalParams(), &r).ok());
+	std::printf("e2e default: %d vertices, %d triangles, corner multiplier %.2f, RMS %.3f mm, median %.3f, "
+		    "p95 %.3f, completeness %.1f %% of %d\n", r.vertices, r.triangles, report.corner_multiplier,
+		    r.rms_mm, r.median_mm, r.p95_mm, 100 * r.completeness, r.truth_counted);
+	assert_true(r.rms_mm < 0.3);
+	assert_true(r.p95_mm < 0.8);
+	assert_true(r.completeness > 0.5);
+	assert_true(report.corner_multiplier >= 4.0);
+	assert_true(r.vertices > 1000);
+	// The Draco round trip keeps the geometry within quantisation.
+	std::vector<char> bytes;
+	assert_true(mesh_io::encode_draco(mesh, mesh_io::DracoOptions(), &bytes).ok());
+	recon::Mesh back;
+	assert_true(mesh_io::decode_draco(bytes.data(), bytes.size(), &back).ok());
+	assert_int_equal(back.triangles.size(), mesh.triangles.size());
+}
+
+int main(void)
+{
+	const struct CMUnitTest tests[] = {
+		cmocka_unit_test(test_default_scene),
+	};
+	return cmocka_run_group_tests(tests, nullptr, nullptr);
+}
