@@ -134,6 +134,8 @@ struct Daemon::Impl {
 
 	void progress(const std::string &stage, const std::string &text)
 	{
+		if (sm.busy())
+			save_current();
 		log(LOG_INFO, "scan %s: %s", sid().c_str(), text.c_str());
 		notify("STATUS=" + std::string(state_name(sm.state())) + ": scan " + sid() + " " + stage);
 		json ev = {{"event", "progress"}, {"scan_id", sid()}, {"state", state_name(sm.state())},
@@ -182,6 +184,17 @@ struct Daemon::Impl {
 		Status s = write_file_atomic(spool.state_dir(), "last.json", last.dump(1) + "\n");
 		if (!s.ok())
 			log(LOG_WARNING, "cannot save the last scan's record: %s", s.message().c_str());
+	}
+
+	// The scan in flight, so that a daemon that dies mid-scan (crash, kill -9) reports it at
+	// the next start instead of forgetting it.
+	void save_current()
+	{
+		json rec = current;
+		rec["state"] = state_name(sm.state());
+		Status s = write_file_atomic(spool.state_dir(), "current.json", rec.dump(1) + "\n");
+		if (!s.ok())
+			log(LOG_WARNING, "cannot save the running scan's record: %s", s.message().c_str());
 	}
 
 	void load_last()
@@ -461,6 +474,7 @@ struct Daemon::Impl {
 		current.erase("base");
 		last = current;
 		save_last();
+		unlink((spool.state_dir() + "/current.json").c_str());
 		json done = {{"event", "done"}, {"ok", outcome == "delivered" || outcome == "spooled"}, {"scan", last}};
 		for (auto &c : clients)
 			if (c->wait_scan == last.value("scan_id", "")) {
@@ -929,6 +943,29 @@ Status Daemon::start()
 	s = d.spool.recover(&failed);
 	if (!s.ok())
 		return s;
+	{
+		// A scan the previous daemon did not finish. Interrupted while writing, the spool
+		// (just recovered) decides; before that, nothing of it exists: report it failed.
+		std::ifstream f(d.spool.state_dir() + "/current.json");
+		std::stringstream ss;
+		ss << f.rdbuf();
+		json cur = json::parse(ss.str(), nullptr, false);
+		if (cur.is_object() && cur.contains("scan_id")) {
+			const std::string st = cur.value("state", "?");
+			const std::string id = cur.value("scan_id", "");
+			if (st != "writing") {
+				log(LOG_ERR, "scan %s: interrupted while %s (daemon stopped); reported failed", id.c_str(),
+				    st.c_str());
+				cur["state"] = "failed";
+				cur["failed_stage"] = st;
+				cur["error"] = "interrupted while " + st + ": the daemon stopped; scan again";
+				cur.erase("base");
+				d.last = cur;
+				d.save_last();
+			}
+		}
+		unlink((d.spool.state_dir() + "/current.json").c_str());
+	}
 	for (const std::string &id : failed) {
 		log(LOG_ERR, "scan %s: interrupted while writing (daemon stopped); reported failed", id.c_str());
 		if (d.last.value("scan_id", "") != id || d.last.value("state", "") != "failed") {

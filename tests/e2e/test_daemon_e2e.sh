@@ -133,6 +133,16 @@ check "last says delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered
 check "spool empty" [ -z "$(ls "$T/spool/queue")" ]
 stop_daemon
 
+# ---- kill -9 before the files exist (armed): reported failed on restart ----
+start_daemon </dev/null
+fs scan --patient KILL-0 --no-wait >/dev/null
+check "armed before the kill" wait_state armed 30
+kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
+start_daemon </dev/null
+check "scan killed while armed reported failed after restart" sh -c "\"$bin/facescan\" last --json | grep -q 'interrupted while armed'"
+check "idle after the restart" wait_state idle 30
+stop_daemon
+
 # ---- kill -9 while spooling: nothing visible, reported failed on restart ----
 start_daemon <<CONF
 test_delay_write_ms = 1500
@@ -162,7 +172,7 @@ start_daemon </dev/null
 for _ in $(seq 50); do [ "$(visible_files KILL-2)" -eq 3 ] && break; sleep 0.1; done
 check "delivery completed after restart" [ "$(visible_files KILL-2)" -eq 3 ]
 check "no temp file left on the share" [ "$(hidden_files)" -eq 0 ]
-check "no patient id in the daemon's log" sh -c "! grep -E 'E2E-1|UNPLUG|SPOOL-1|KILL-1|KILL-2' '$T/daemon.log'"
+check "no patient id in the daemon's log" sh -c "! grep -E 'E2E-1|UNPLUG|SPOOL-1|KILL-0|KILL-1|KILL-2' '$T/daemon.log'"
 check "a progress line per stage" sh -c "grep -c '\[[123]/3\]' '$T/daemon.log' | awk '{exit !(\$1 >= 9)}'"
 stop_daemon
 
