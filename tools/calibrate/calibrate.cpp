@@ -9,12 +9,13 @@
 
 #include <getopt.h>
 
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -101,22 +102,38 @@ Status read_pairs(const std::string &list, ImageTable *ret)
 	return Status();
 }
 
+// "pose<k>_cam<i>.<image extension>" → k, i.
+bool parse_image_name(const std::string &file, int *ret_pose, int *ret_cam)
+{
+	static const char *const exts[] = {"png", "jpg", "jpeg", "bmp", "tif", "tiff", "pgm", "ppm"};
+	int pose = -1, cam = -1, used = 0;
+	if (std::sscanf(file.c_str(), "pose%d_cam%d.%n", &pose, &cam, &used) != 2 || used == 0 ||
+	    pose < 0 || cam < 0 || !std::isdigit((unsigned char)file[4]))
+		return false;
+	std::string ext = file.substr(size_t(used));
+	for (char &ch : ext)
+		ch = char(std::tolower((unsigned char)ch));
+	for (const char *x : exts)
+		if (ext == x) {
+			*ret_pose = pose;
+			*ret_cam = cam;
+			return true;
+		}
+	return false;
+}
+
 Status read_dir(const std::string &dir, ImageTable *ret)
 {
 	std::error_code ec;
 	fs::directory_iterator it(dir, ec);
 	if (ec)
 		return Status::error(ENOENT, "cannot read directory " + dir + ": " + ec.message());
-	static const std::regex name(R"(pose(\d+)_cam(\d+)\.(png|jpg|jpeg|bmp|tif|tiff|pgm|ppm))",
-				     std::regex::icase);
 	std::map<int, std::map<int, std::string>> found;
 	int cams = 0;
 	for (const fs::directory_entry &e : it) {
-		std::smatch m;
-		const std::string file = e.path().filename().string();
-		if (!std::regex_match(file, m, name))
+		int pose = 0, cam = 0;
+		if (!parse_image_name(e.path().filename().string(), &pose, &cam))
 			continue;
-		const int pose = std::atoi(m[1].str().c_str()), cam = std::atoi(m[2].str().c_str());
 		if (cam > 63)
 			return Status::error(EINVAL, e.path().string() + ": camera index above 63");
 		if (found[pose].count(cam))
@@ -170,7 +187,7 @@ int calibrate_main(int argc, char **argv)
 		*ret = std::strtod(s, &end);
 		return end != s && !*end;
 	};
-	optind = 1;
+	optind = 0; // GNU getopt: 0 re-initialises (the verb may run more than once in a process)
 	opterr = 0;
 	for (int c; (c = getopt_long(argc, argv, "o:h", options, nullptr)) != -1;) {
 		double v = 0;
@@ -243,6 +260,8 @@ int calibrate_main(int argc, char **argv)
 	if (!st.ok())
 		return failure(st.message());
 	const size_t poses = table.size(), cams = table[0].size();
+	if (cams < 2)
+		return failure("images of at least 2 cameras are needed (found camera 0 only)");
 
 	// Detect the board in every image, in parallel; report in order afterwards.
 	std::vector<std::vector<calib::BoardView>> views(poses, std::vector<calib::BoardView>(cams));
@@ -278,23 +297,19 @@ int calibrate_main(int argc, char **argv)
 					   std::to_string(sizes[c].height);
 			}
 		}
-	int skipped = 0;
+	int skipped = 0, found = 0;
 	for (size_t p = 0; p < poses; p++)
-		for (size_t c = 0; c < cams; c++)
-			if (!views[p][c].found && !table[p][c].empty()) {
-				std::printf("skipped %s: %s\n", table[p][c].c_str(), views[p][c].reason.c_str());
+		for (size_t c = 0; c < cams; c++) {
+			if (views[p][c].found) {
+				found++;
+			} else if (!table[p][c].empty()) {
+				std::printf("skipped %s: %s\n", table[p][c].c_str(),
+					    views[p][c].reason.c_str());
 				skipped++;
 			}
-	std::printf("%zu poses x %zu cameras, board found in %zu images, %d skipped\n", poses, cams,
-		    poses * cams - size_t(skipped) -
-			    [&] {
-				    size_t missing = 0;
-				    for (const auto &row : table)
-					    for (const auto &p : row)
-						    missing += p.empty();
-				    return missing;
-			    }(),
-		    skipped);
+		}
+	std::printf("%zu poses x %zu cameras: board found in %d images, %d skipped\n", poses, cams,
+		    found, skipped);
 	for (size_t c = 0; c < cams; c++)
 		if (!sizes[c].area())
 			return failure("camera " + std::to_string(c) + " has no readable image");

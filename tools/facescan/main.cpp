@@ -17,6 +17,7 @@ int last_main(int argc, char **argv);
 int recon_main(int argc, char **argv);
 int simulate_main(int argc, char **argv);
 int evaluate_main(int argc, char **argv);
+int calibrate_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -28,6 +29,7 @@ static const Verb verbs[] = {
 	{"recon", "reconstruct a capture set into a textured Draco face mesh", facescan::cli::recon_main},
 	{"simulate", "render a capture set of the simulated booth", facescan::cli::simulate_main},
 	{"evaluate", "compare a reconstructed mesh with a simulated set's ground truth", facescan::cli::evaluate_main},
+	{"calibrate", "calibrate the cameras from images of a chessboard or ChArUco board", facescan::cli::calibrate_main},
 };
 
 static void usage(FILE *out)

@@ -220,8 +220,9 @@ Status BoardCamera::render(const calib::BoardSpec &board, const BoardPose &pose,
 }
 
 std::vector<BoardPose> calibration_poses(const Calibration &rig, const calib::BoardSpec &board,
-					 const cv::Vec3d &target)
+					 const cv::Vec3d &target, int per_direction)
 {
+	per_direction = std::clamp(per_direction, 1, 3);
 	std::vector<BoardPose> poses;
 	const size_t n = rig.cameras.size();
 	if (!n)
@@ -250,7 +251,7 @@ std::vector<BoardPose> calibration_poses(const Calibration &rig, const calib::Bo
 	const double tilt[3] = {35, -35, 8}, swing[3] = {8, -6, 32}, roll[3] = {-12, 9, 4};
 	int k = 0;
 	for (const cv::Vec3d &f : facing)
-		for (int j = 0; j < 3; j++, k++) {
+		for (int j = 0; j < per_direction; j++, k++) {
 			const cv::Vec3d z = -f; // into the board, away from the cameras it faces
 			cv::Vec3d x = down.cross(z);
 			x /= cv::norm(x);

@@ -58,8 +58,9 @@ Status render_board(const CameraModel &camera, const calib::BoardSpec &board,
 
 /// Board poses for calibrating `rig`: the board's centre near `target` (world mm), turned to
 /// face each camera and each point between consecutive cameras, tilted both ways so that every
-/// camera gets intrinsic views and every consecutive pair gets shared views. Deterministic.
+/// camera gets intrinsic views and every consecutive pair gets shared views. `per_direction`
+/// (1..3) poses per direction: tilted up, tilted down, swung sideways. Deterministic.
 std::vector<BoardPose> calibration_poses(const Calibration &rig, const calib::BoardSpec &board,
-					 const cv::Vec3d &target);
+					 const cv::Vec3d &target, int per_direction = 3);
 
 } // namespace facescan::sim
