@@ -249,6 +249,52 @@ static void test_corner_order(void **)
 	assert_true(none.reason.find("not found") != std::string::npos);
 }
 
+// ChArUco: rendered through a half-size camera, partly out of view; the corners found carry
+// their ids and sit where the truth projects them.
+static void test_charuco_detection(void **)
+{
+	sim::Rig rig = sim::default_rig();
+	assert_true(sim::scale_rig(0.5, &rig).ok());
+	const CameraModel cam = sim::rig_calibration(rig).cameras[1];
+	calib::BoardSpec b;
+	b.type = calib::TargetType::Charuco;
+	b.cols = 9;
+	b.rows = 6;
+	b.square_mm = 25;
+	b.marker_mm = 19;
+	const sim::BoardCamera bc(cam, 3);
+	for (double shift : {0.0, 120.0}) { // the second pose hangs off the image's right edge
+		sim::BoardPose pose = fx->poses[4];
+		pose.t += cv::Vec3d(cam.R(0, 0), cam.R(0, 1), cam.R(0, 2)) * shift;
+		cv::Mat img;
+		assert_true(bc.render(b, pose, sim::BoardRenderParams(), &img).ok());
+		const calib::BoardView v = calib::detect_board(img, b);
+		std::printf("  shift %.0f mm: %s, %zu corners\n", shift, v.found ? "found" : v.reason.c_str(),
+			    v.ids.size());
+		assert_true(v.found);
+		if (shift == 0)
+			assert_int_equal(v.ids.size(), 54);
+		else
+			assert_true(v.ids.size() >= 8 && v.ids.size() < 54);
+		const std::vector<cv::Point3f> all = calib::board_object_points(b);
+		std::vector<cv::Point3d> world;
+		for (size_t i = 0; i < v.ids.size(); i++) {
+			assert_true(v.object_points[i] == all[size_t(v.ids[i])]);
+			const cv::Point3f &o = v.object_points[i];
+			world.push_back(cv::Vec3d(pose.R * cv::Vec3d(o.x, o.y, o.z) + pose.t));
+		}
+		cv::Vec3d rv;
+		cv::Rodrigues(cam.R, rv);
+		std::vector<cv::Point2d> want;
+		cv::projectPoints(world, rv, cam.T, cam.K, cam.dist, want);
+		double worst = 0;
+		for (size_t i = 0; i < want.size(); i++)
+			worst = std::max(worst, cv::norm(cv::Point2d(v.image_points[i]) - want[i]));
+		std::printf("  worst corner %.3f px from the truth\n", worst);
+		assert_true(worst < 0.3);
+	}
+}
+
 // The library on all views: per camera and per pair RMS, accuracy against the truth, and the
 // board-pose world frame.
 static void test_rig_accuracy(void **)
@@ -394,6 +440,7 @@ int main(void)
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_board_description),
 		cmocka_unit_test(test_corner_order),
+		cmocka_unit_test(test_charuco_detection),
 		cmocka_unit_test(test_rig_accuracy),
 		cmocka_unit_test(test_cli_multi_camera),
 		cmocka_unit_test(test_cli_pairs),
