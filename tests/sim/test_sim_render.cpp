@@ -6,11 +6,14 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdarg>
 #include <cstddef>
 #include <cstdio>
 #include <cstring>
+#include <map>
+#include <tuple>
 #include <setjmp.h>
 
 extern "C" {
@@ -325,6 +328,130 @@ static void test_render_errors(void **)
 	assert_int_equal(make_head(hs, cv::Vec3f(0.5f, 0.4f, 0.3f), &m).code(), -EINVAL);
 }
 
+// Number of edges not shared by exactly two triangles (0 = a closed 2-manifold); with
+// `odd`, only those used by an odd number of triangles (boundary edges: holes).
+static size_t open_edges(const Mesh &m, bool odd = false)
+{
+	std::vector<std::pair<int, int>> edges;
+	for (const cv::Vec3i &t : m.triangles)
+		for (int k = 0; k < 3; k++)
+			edges.push_back({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
+	std::sort(edges.begin(), edges.end());
+	size_t i = 0, bad = 0;
+	while (i < edges.size()) {
+		size_t j = i;
+		while (j < edges.size() && edges[j] == edges[i])
+			j++;
+		bad += odd ? (j - i) % 2 : (j - i) != 2;
+		i = j;
+	}
+	return bad;
+}
+
+// Largest distance from a vertex of `b` to the nearest vertex of `a` (mm; 3 mm hash cells,
+// distances beyond 3 mm are reported as 3).
+static double max_vertex_distance(const Mesh &a, const Mesh &b)
+{
+	auto key = [](const cv::Vec3f &v) {
+		return std::make_tuple(int(std::floor(v[0] / 3)), int(std::floor(v[1] / 3)), int(std::floor(v[2] / 3)));
+	};
+	std::map<std::tuple<int, int, int>, std::vector<cv::Vec3f>> grid;
+	for (const cv::Vec3f &v : a.vertices)
+		grid[key(v)].push_back(v);
+	double worst = 0;
+	for (const cv::Vec3f &v : b.vertices) {
+		auto [i, j, k] = key(v);
+		double best = 3;
+		for (int di = -1; di <= 1; di++)
+			for (int dj = -1; dj <= 1; dj++)
+				for (int dk = -1; dk <= 1; dk++) {
+					auto it = grid.find({i + di, j + dj, k + dk});
+					if (it == grid.end())
+						continue;
+					for (const cv::Vec3f &w : it->second)
+						best = std::min(best, double(cv::norm(v - w)));
+				}
+		worst = std::max(worst, best);
+	}
+	return worst;
+}
+
+static void test_head_variation(void **)
+{
+	// Every drawn parameter lies in its documented range, and the draws spread over it.
+	const auto &ranges = head_shape_ranges();
+	assert_int_equal(ranges.size(), 14);
+	std::vector<double> lo(ranges.size(), 1e9), hi(ranges.size(), -1e9);
+	HeadShape canonical;
+	for (uint64_t seed = 0; seed < 300; seed++) {
+		HeadShape h = random_head_shape(seed);
+		for (size_t r = 0; r < ranges.size(); r++) {
+			double v = h.*ranges[r].member;
+			assert_true(v >= ranges[r].lo && v <= ranges[r].hi);
+			lo[r] = std::min(lo[r], v);
+			hi[r] = std::max(hi[r], v);
+		}
+	}
+	for (size_t r = 0; r < ranges.size(); r++) {
+		double c = canonical.*ranges[r].member;
+		assert_true(c > ranges[r].lo && c < ranges[r].hi); // the canonical head is inside
+		assert_true(hi[r] - lo[r] > 0.8 * (ranges[r].hi - ranges[r].lo));
+		// Factors stay within 15 % of the canonical head.
+		if (c == 1)
+			assert_true(ranges[r].lo >= 0.85 && ranges[r].hi <= 1.15);
+	}
+	// Out of range is refused, naming the parameter.
+	HeadSpec spec;
+	spec.cell_mm = 3.0; // a coarse head keeps the sanitizer build quick
+	spec.shape.nose_length = 1.5;
+	Mesh m;
+	Status st = make_head(spec, cv::Vec3f(0.6f, 0.4f, 0.3f), &m);
+	assert_int_equal(st.code(), -EINVAL);
+	assert_non_null(std::strstr(st.message().c_str(), "nose_length"));
+
+	// Same head seed: identical meshes; other head seeds: a different head, still closed.
+	Mesh h0, h1a, h1b, h2;
+	assert_true(make_head(HeadSpec{2.0, 1, HeadShape()}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h0).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1)}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1a).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1)}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1b).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(2)}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h2).ok());
+	assert_int_equal(h1a.vertices.size(), h1b.vertices.size());
+	assert_int_equal(h1a.triangles.size(), h1b.triangles.size());
+	for (size_t i = 0; i < h1a.vertices.size(); i++)
+		assert_true(h1a.vertices[i] == h1b.vertices[i]);
+	for (size_t i = 0; i < h1a.triangles.size(); i++)
+		assert_true(h1a.triangles[i] == h1b.triangles[i]);
+	double d12 = max_vertex_distance(h1a, h2), d21 = max_vertex_distance(h2, h1a);
+	double d01 = max_vertex_distance(h0, h1a);
+	std::printf("  head seeds 1 vs 2: max vertex distance %.1f / %.1f mm; canonical vs seed 1: %.1f mm\n",
+		    d12, d21, d01);
+	assert_true(std::max(d12, d21) > 1.0);
+	assert_true(d01 > 1.0);
+	for (const Mesh *h : {&h0, &h1a, &h2}) {
+		cv::Vec3f blo(1e9f, 1e9f, 1e9f), bhi(-1e9f, -1e9f, -1e9f);
+		for (const cv::Vec3f &v : h->vertices)
+			for (int k = 0; k < 3; k++) {
+				blo[k] = std::min(blo[k], v[k]);
+				bhi[k] = std::max(bhi[k], v[k]);
+			}
+		size_t holes = open_edges(*h, true), non_manifold = open_edges(*h);
+		std::printf("  head: %zu triangles, x %.0f..%.0f, y %.0f..%.0f, z %.0f..%.0f mm, %zu edges "
+			    "not shared by 2 triangles (%zu boundary)\n",
+			    h->triangles.size(), blo[0], bhi[0], blo[1], bhi[1], blo[2], bhi[2], non_manifold, holes);
+		// Watertight: no boundary edge. Surface nets may join two sheets at an ambiguous grid
+		// face (an edge of 4 triangles); the canonical head has none (test_head_anatomy), a
+		// varied head a handful at most (docs/simulator.md).
+		assert_int_equal(holes, 0);
+		assert_true(non_manifold <= 10);
+		if (h == &h0)
+			assert_int_equal(non_manifold, 0);
+		// Still an adult head: ears at about +-70..100, crown above, nose tip in front.
+		assert_true(bhi[0] > 65 && bhi[0] < 105 && blo[0] < -65 && blo[0] > -105);
+		assert_true(bhi[1] > 95 && bhi[1] < 150);
+		assert_true(bhi[2] > 95 && bhi[2] < 140);
+	}
+}
+
 static void test_head_anatomy(void **)
 {
 	Mesh m;
@@ -344,19 +471,7 @@ static void test_head_anatomy(void **)
 	assert_true(hi[1] > 100 && hi[1] < 140);
 	assert_true(hi[2] > 100 && hi[2] < 125); // the nose tip is the front-most point
 	// Every edge is shared by exactly two triangles: a closed surface.
-	std::vector<std::pair<int, int>> edges;
-	for (const cv::Vec3i &t : m.triangles)
-		for (int k = 0; k < 3; k++)
-			edges.push_back({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
-	std::sort(edges.begin(), edges.end());
-	size_t i = 0, bad = 0;
-	while (i < edges.size()) {
-		size_t j = i;
-		while (j < edges.size() && edges[j] == edges[i])
-			j++;
-		bad += (j - i) != 2;
-		i = j;
-	}
+	size_t bad = open_edges(m);
 	std::printf("  head: %zu edges not shared by exactly 2 triangles\n", bad);
 	assert_int_equal(bad, 0);
 }
@@ -370,6 +485,7 @@ int main(void)
 		cmocka_unit_test(test_same_seed_same_images),
 		cmocka_unit_test(test_render_errors),
 		cmocka_unit_test(test_head_anatomy),
+		cmocka_unit_test(test_head_variation),
 	};
 	return cmocka_run_group_tests(tests, NULL, NULL);
 }

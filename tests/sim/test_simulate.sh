@@ -25,5 +25,7 @@ head -c 3 "$out/set/ground_truth.ply" | grep -q ply || { echo "FAIL: ground_trut
 [ $rc -eq 1 ] || { echo "FAIL: missing rig exited $rc, want 1"; fail=1; }
 "$bin" simulate --scale 9 --out "$out/x" 2>/dev/null; rc=$?
 [ $rc -eq 2 ] || { echo "FAIL: --scale 9 exited $rc, want 2"; fail=1; }
+"$bin" simulate --head-seed round --out "$out/x" 2>/dev/null; rc=$?
+[ $rc -eq 2 ] || { echo "FAIL: --head-seed round exited $rc, want 2"; fail=1; }
 [ $fail -eq 0 ] && echo "ok: facescan simulate wrote a complete capture set"
 exit $fail

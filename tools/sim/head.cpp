@@ -64,8 +64,48 @@ inline V3 rot_y(const V3 &p, const V3 &c, float cs, float sn)
 	return c + V3(cs * q[0] - sn * q[2], q[1], sn * q[0] + cs * q[2]);
 }
 
-// The head's field: negative inside. Both sides are built from the same half by mirroring x.
-float head_field(const V3 &p0)
+// HeadShape as the field uses it: the inverse of the whole-head scale, the left/right
+// asymmetry, and the feature parameters in float.
+struct Shape {
+	V3 inv_scale{1, 1, 1};
+	float asym = 0, lipschitz = 1;
+	float nose_len = 1, nose_w = 1, nose_proj = 1, nose_dev = 0;
+	float chin = 1, cheeks = 1, lips = 1, sockets = 1, ear_up = 0, ear_back = 0;
+};
+
+Shape make_shape(const HeadShape &h)
+{
+	Shape s;
+	s.inv_scale = V3(float(1 / h.width), float(1 / h.height), float(1 / h.depth));
+	s.asym = float(h.asymmetry);
+	// The field is evaluated at warped coordinates: dividing by this keeps it a distance bound
+	// (the warp stretches by at most 1 + 1.5 |asym| after the scale).
+	s.lipschitz = (1 + 1.5f * std::fabs(s.asym)) * std::max(s.inv_scale[0], std::max(s.inv_scale[1], s.inv_scale[2]));
+	s.nose_len = float(h.nose_length);
+	s.nose_w = float(h.nose_width);
+	s.nose_proj = float(h.nose_projection);
+	s.nose_dev = float(h.nose_deviation_mm);
+	s.chin = float(h.chin);
+	s.cheeks = float(h.cheeks);
+	s.lips = float(h.lips);
+	s.sockets = float(h.eye_sockets);
+	s.ear_up = float(h.ear_up_mm);
+	s.ear_back = float(h.ear_back_mm);
+	return s;
+}
+
+// World (head) coordinates to the canonical head's: undo the scale, then widen the subject's
+// left (+x) and narrow the right by `asym` (smoothly across the midline).
+inline V3 canonical(const V3 &p, const Shape &s)
+{
+	V3 q(p[0] * s.inv_scale[0], p[1] * s.inv_scale[1], p[2] * s.inv_scale[2]);
+	q[0] *= 1.f - s.asym * std::tanh(q[0] / 30.f);
+	return q;
+}
+
+// The head's field in canonical coordinates: negative inside. Both sides are built from the
+// same half by mirroring x.
+float canonical_field(const V3 &p0, const Shape &s)
 {
 	V3 p(std::fabs(p0[0]), p0[1], p0[2]); // symmetric parts use |x|
 	// Cranium and face.
@@ -73,7 +113,7 @@ float head_field(const V3 &p0)
 	d = smin(d, ellipsoid(p0, V3(0, -35, 22), V3(60, 72, 70)), 24);
 	// Lower jaw towards the gonion, and the chin.
 	d = smin(d, capsule(p, V3(42, -74, 0), V3(14, -98, 60), 13), 22);
-	d = smin(d, ellipsoid(p0, V3(0, -98, 72), V3(22, 14, 16)), 16);
+	d = smin(d, ellipsoid(p0, V3(0, -98, 72 + 10 * (s.chin - 1)), V3(22, 14, 16) * s.chin), 16);
 	// Neck, cut flat at the bottom.
 	d = smin(d, capsule(p0, V3(0, -70, -22), V3(0, -230, -32), 54), 24);
 	d = std::max(d, -(p0[1] + 205.f));
@@ -82,33 +122,40 @@ float head_field(const V3 &p0)
 	d = smin(d, ellipsoid(p, V3(26, 13, 80), V3(24, 8, 10)), 10);
 	// Cheekbones and cheeks.
 	d = smin(d, ellipsoid(p, V3(48, -8, 56), V3(16, 10, 15)), 18);
-	d = smin(d, ellipsoid(p, V3(36, -30, 60), V3(22, 24, 20)), 24);
+	d = smin(d, ellipsoid(p, V3(36, -30, 60), V3(22, 24, 20) * s.cheeks), 24);
 	// Eye sockets, then the eyes in them.
-	d = ssub(d, ellipsoid(p, V3(32, 3, 90), V3(19, 11, 16)), 7);
+	d = ssub(d, ellipsoid(p, V3(32, 3, 90), V3(19, 11, 16 * s.sockets)), 7);
 	d = smin(d, ellipsoid(p, V3(32, 1, 70), V3(12, 12, 12)), 1.5f);
 	// Nose: bridge to tip, alae, nostrils.
-	d = smin(d, round_cone(p0, V3(0, 8, 85), V3(0, -30, 111), 6.f, 8.5f), 7);
-	d = smin(d, ellipsoid(p, V3(11, -37, 96), V3(8, 7, 9)), 8);
-	d = ssub(d, ellipsoid(p, V3(7, -44, 99), V3(4, 2.5f, 5.5f)), 2);
+	const float tip_y = 8 - 38 * s.nose_len, proj = 26 * s.nose_proj;
+	d = smin(d, round_cone(p0, V3(0, 8, 85), V3(s.nose_dev, tip_y, 85 + proj), 6.f * s.nose_w, 8.5f * s.nose_w), 7);
+	d = smin(d, ellipsoid(p, V3(11 * s.nose_w, tip_y - 7, 85 + proj * (11.f / 26)), V3(8 * s.nose_w, 7, 9)), 8);
+	d = ssub(d, ellipsoid(p, V3(7 * s.nose_w, tip_y - 14, 85 + proj * (14.f / 26)), V3(4 * s.nose_w, 2.5f, 5.5f)), 2);
 	// Lips and the mouth line.
-	d = smin(d, ellipsoid(p0, V3(0, -59, 86), V3(24, 7, 9)), 8);
-	d = smin(d, ellipsoid(p0, V3(0, -72, 84), V3(21, 7, 9)), 8);
+	d = smin(d, ellipsoid(p0, V3(0, -59, 86), V3(24, 7 * s.lips, 9 * s.lips)), 8);
+	d = smin(d, ellipsoid(p0, V3(0, -72, 84), V3(21, 7 * s.lips, 9 * s.lips)), 8);
 	d = ssub(d, ellipsoid(p0, V3(0, -65.5f, 95), V3(24, 1.2f, 9)), 2);
 	// Ears: a tilted disc flaring out behind the jaw, with the concha hollowed out.
 	const float cs = std::cos(0.35f), sn = std::sin(0.35f);
-	V3 e = rot_y(p, V3(76, -12, -14), cs, sn);
-	float ear = ellipsoid(e, V3(76, -12, -14), V3(6, 31, 18));
-	ear = ssub(ear, ellipsoid(e, V3(82, -16, -11), V3(5, 13, 9)), 3);
+	const V3 ear_c(76, -12 + s.ear_up, -14 - s.ear_back);
+	V3 e = rot_y(p, ear_c, cs, sn);
+	float ear = ellipsoid(e, ear_c, V3(6, 31, 18));
+	ear = ssub(ear, ellipsoid(e, ear_c + V3(6, -4, 3), V3(5, 13, 9)), 3);
 	d = smin(d, ear, 5);
 	return d;
 }
 
-V3 field_gradient(const V3 &p)
+float head_field(const V3 &p, const Shape &s)
+{
+	return canonical_field(canonical(p, s), s) / s.lipschitz;
+}
+
+V3 field_gradient(const V3 &p, const Shape &s)
 {
 	const float h = 0.05f;
-	V3 g(head_field(p + V3(h, 0, 0)) - head_field(p - V3(h, 0, 0)),
-	     head_field(p + V3(0, h, 0)) - head_field(p - V3(0, h, 0)),
-	     head_field(p + V3(0, 0, h)) - head_field(p - V3(0, 0, h)));
+	V3 g(head_field(p + V3(h, 0, 0), s) - head_field(p - V3(h, 0, 0), s),
+	     head_field(p + V3(0, h, 0), s) - head_field(p - V3(0, h, 0), s),
+	     head_field(p + V3(0, 0, h), s) - head_field(p - V3(0, 0, h), s));
 	return g * (0.5f / h);
 }
 
@@ -146,8 +193,8 @@ V3 mix(const V3 &a, const V3 &b, float t)
 	return a * (1 - t) + b * t;
 }
 
-// Linear albedo at a point of the head (head coordinates).
-V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key)
+// Linear albedo at a point of the head (canonical coordinates).
+V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s)
 {
 	V3 p(std::fabs(p0[0]), p0[1], p0[2]);
 	// Skin: blotches at two scales, redder cheeks and nose tip, slightly darker neck.
@@ -184,7 +231,8 @@ V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key)
 	float az = std::atan2(p[0], p[2]); // 0 in front, pi at the back
 	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
 	line = std::max(line, -75.f);
-	bool ear_zone = p[0] > 66 && p[1] < 22 && p[1] > -48 && p[2] < 10 && p[2] > -38;
+	const float ey = p[1] - s.ear_up, ez = p[2] + s.ear_back;
+	bool ear_zone = p[0] > 66 && ey < 22 && ey > -48 && ez < 10 && ez > -38;
 	float h = smoothstep(line - 3, line + 3, p[1]) * (ear_zone ? 0.f : 1.f);
 	h *= 0.85f + 0.15f * value_noise(p0, 2, key + 3);
 	c = mix(c, hair * (0.8f + 0.5f * value_noise(p0, 6, key + 4)), h);
@@ -195,16 +243,58 @@ V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key)
 
 } // namespace
 
+const std::vector<HeadShapeRange> &head_shape_ranges()
+{
+	static const std::vector<HeadShapeRange> ranges = {
+		{"width", &HeadShape::width, 0.92, 1.08},
+		{"height", &HeadShape::height, 0.92, 1.08},
+		{"depth", &HeadShape::depth, 0.92, 1.08},
+		{"nose_length", &HeadShape::nose_length, 0.87, 1.15},
+		{"nose_width", &HeadShape::nose_width, 0.87, 1.15},
+		{"nose_projection", &HeadShape::nose_projection, 0.87, 1.15},
+		{"chin", &HeadShape::chin, 0.87, 1.15},
+		{"cheeks", &HeadShape::cheeks, 0.85, 1.15},
+		{"lips", &HeadShape::lips, 0.85, 1.15},
+		{"eye_sockets", &HeadShape::eye_sockets, 0.85, 1.15},
+		{"ear_up_mm", &HeadShape::ear_up_mm, -4, 4},
+		{"ear_back_mm", &HeadShape::ear_back_mm, -4, 4},
+		{"asymmetry", &HeadShape::asymmetry, -0.025, 0.025},
+		{"nose_deviation_mm", &HeadShape::nose_deviation_mm, -2.5, 2.5},
+	};
+	return ranges;
+}
+
+HeadShape random_head_shape(uint64_t head_seed)
+{
+	HeadShape h;
+	const uint64_t key = internal::mix64(head_seed ^ 0x4eadc0deULL);
+	uint64_t i = 0;
+	for (const HeadShapeRange &r : head_shape_ranges())
+		h.*r.member = r.lo + (r.hi - r.lo) * internal::uniform01(key, i++);
+	return h;
+}
+
 Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 {
 	if (!(spec.cell_mm >= 0.4 && spec.cell_mm <= 8))
 		return Status::error(-EINVAL, "head cell_mm " + std::to_string(spec.cell_mm) +
 						      " out of range [0.4, 8]");
+	for (const HeadShapeRange &r : head_shape_ranges()) {
+		double v = spec.shape.*r.member;
+		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
+			return Status::error(-EINVAL, std::string("head shape ") + r.name + " " +
+							      std::to_string(v) + " out of range [" +
+							      std::to_string(r.lo) + ", " + std::to_string(r.hi) + "]");
+	}
+	const Shape shape = make_shape(spec.shape);
 	for (int k = 0; k < 3; k++)
 		if (!(skin[k] >= 0 && skin[k] <= 1))
 			return Status::error(-EINVAL, "skin albedo must lie in 0..1");
 	const float h = float(spec.cell_mm);
-	const V3 lo(-104, -212, -122), hi(104, 136, 132);
+	// The canonical head's box, scaled with the head (and widened for the asymmetry).
+	const float wx = float(spec.shape.width) * (1 + std::fabs(shape.asym));
+	const V3 lo(-104 * wx, -212 * float(spec.shape.height), -122 * float(spec.shape.depth));
+	const V3 hi(104 * wx, 136 * float(spec.shape.height), 132 * float(spec.shape.depth));
 	const int nx = int(std::ceil((hi[0] - lo[0]) / h)) + 1;
 	const int ny = int(std::ceil((hi[1] - lo[1]) / h)) + 1;
 	const int nz = int(std::ceil((hi[2] - lo[2]) / h)) + 1;
@@ -222,7 +312,7 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 			for (int j = 0; j < cy; j++)
 				for (int i = 0; i < cx; i++)
 					coarse[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] =
-						head_field(point(i * s, j * s, k * s));
+						head_field(point(i * s, j * s, k * s), shape);
 	});
 	const float band = float(s) * h * 1.8f;
 	cv::parallel_for_(cv::Range(0, nz), [&](const cv::Range &r) {
@@ -231,7 +321,7 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 				for (int i = 0; i < nx; i++) {
 					int ci = (i + s / 2) / s, cj = (j + s / 2) / s, ck = (k + s / 2) / s;
 					float c = coarse[(size_t(ck) * size_t(cy) + size_t(cj)) * size_t(cx) + size_t(ci)];
-					f[idx(i, j, k)] = std::fabs(c) > band ? c : head_field(point(i, j, k));
+					f[idx(i, j, k)] = std::fabs(c) > band ? c : head_field(point(i, j, k), shape);
 				}
 	});
 
@@ -310,20 +400,20 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 		for (int vi = r.start; vi < r.end; vi++) {
 			V3 p = m.vertices[size_t(vi)];
 			for (int it = 0; it < 4; it++) {
-				V3 g = field_gradient(p);
+				V3 g = field_gradient(p, shape);
 				float g2 = g.dot(g);
 				if (g2 < 1e-8f)
 					break;
-				V3 step = g * (head_field(p) / g2);
+				V3 step = g * (head_field(p, shape) / g2);
 				if (len(step) > h) // stay in the neighbourhood of the cell
 					step *= h / len(step);
 				p -= step;
 			}
-			V3 g = field_gradient(p);
+			V3 g = field_gradient(p, shape);
 			float gl = len(g);
 			m.vertices[size_t(vi)] = p;
 			m.normals[size_t(vi)] = gl > 1e-8f ? g * (1.f / gl) : V3(0, 0, 1);
-			m.colors[size_t(vi)] = head_albedo(p, skin, key);
+			m.colors[size_t(vi)] = head_albedo(canonical(p, shape), skin, key, shape);
 		}
 	});
 	// Orient every triangle outwards (the quad winding above depends on the crossing sign).

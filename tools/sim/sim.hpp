@@ -145,15 +145,46 @@ Status write_ply(const std::string &path, const Mesh &mesh);
 
 // ---- the scene ---------------------------------------------------------------------------------
 
+/// Anatomy of the procedural head. The defaults are the canonical head; factors multiply a
+/// canonical measure, *_mm are offsets. Ranges: head_shape_ranges() (docs/simulator.md).
+struct HeadShape {
+	double width = 1, height = 1, depth = 1;	// whole head scale along x, y, z
+	double nose_length = 1;			// bridge to tip, vertically
+	double nose_width = 1;			// alae spacing and nose radii
+	double nose_projection = 1;		// how far the tip stands out of the face
+	double chin = 1;			// chin size and projection
+	double cheeks = 1;			// cheek fullness
+	double lips = 1;			// lip fullness (height and projection)
+	double eye_sockets = 1;			// eye-socket depth
+	double ear_up_mm = 0, ear_back_mm = 0;	// ear position offset (both ears)
+	double asymmetry = 0;			// subject's left side wider by this fraction (- = right)
+	double nose_deviation_mm = 0;		// nose tip shifted along +x
+};
+
+/// One HeadShape member with the range random_head_shape() draws it from (make_head refuses
+/// values outside).
+struct HeadShapeRange {
+	const char *name;
+	double HeadShape::*member;
+	double lo, hi;
+};
+const std::vector<HeadShapeRange> &head_shape_ranges();
+
+/// A head drawn uniformly from head_shape_ranges(), deterministic for `head_seed` (independent
+/// of the sensor noise seed).
+HeadShape random_head_shape(uint64_t head_seed);
+
 struct HeadSpec {
 	double cell_mm = 1.4;	// grid step of the implicit surface (smaller = more triangles)
-	uint32_t seed = 1;	// skin blotches and small asymmetries
+	uint32_t seed = 1;	// skin blotches
+	HeadShape shape;	// anatomy (default: the canonical head)
 };
 
 /// The procedural head in head coordinates (mm, face towards +z, +y up, centred near the
 /// origin): cranium, forehead, eye sockets with eyes, brows, nose, cheeks, lips, chin, jaw, ears,
 /// neck. Smooth normals and per-vertex skin albedo (hair, brows, lips, eyes darker/redder),
-/// scaled by `skin` (the albedo of plain cheek skin, linear RGB).
+/// scaled by `skin` (the albedo of plain cheek skin, linear RGB). -EINVAL when cell_mm or a
+/// shape parameter is out of range.
 Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh);
 
 struct Scene {

@@ -18,8 +18,9 @@ namespace facescan::cli {
 static void simulate_usage(FILE *out)
 {
 	std::fprintf(out,
-		     "usage: facescan simulate [--scene NAME] [--config FILE] [--seed N] [--scale S]\n"
-		     "                         [--supersample N] [--no-texture] [--contact-sheet PNG]\n"
+		     "usage: facescan simulate [--scene NAME] [--config FILE] [--seed N] [--head-seed N|canonical]\n"
+		     "                         [--scale S] [--supersample N] [--no-texture]\n"
+		     "                         [--contact-sheet PNG]\n"
 		     "                         --out DIR\n"
 		     "\n"
 		     "Renders the booth (4 cameras, 3 projectors throwing the pattern slide) looking at\n"
@@ -27,7 +28,9 @@ static void simulate_usage(FILE *out)
 		     "calibration.yaml, capture.json, ground_truth.ply (docs/simulator.md).\n"
 		     "  --scene NAME       default | turned | noisy | dark (default: default)\n"
 		     "  --config FILE      rig file (default: built-in, = tools/sim/rigs/default.yaml)\n"
-		     "  --seed N           sensor noise seed (default 1); same seed, same images\n"
+		     "  --seed N           sensor noise seed (default 1); same seeds, same images\n"
+		     "  --head-seed N      draws the head's anatomy (default: the --seed value);\n"
+		     "                     'canonical' keeps the fixed reference head\n"
 		     "  --scale S          camera resolution factor, K scaled to match (0 < S <= 4)\n"
 		     "  --supersample N    N x N rays per pixel (default: the rig's)\n"
 		     "  --no-texture       skip the texture frames\n"
@@ -45,6 +48,7 @@ int simulate_main(int argc, char **argv)
 	static const option options[] = {{"scene", required_argument, nullptr, 's'},
 					 {"config", required_argument, nullptr, 'c'},
 					 {"seed", required_argument, nullptr, 'S'},
+					 {"head-seed", required_argument, nullptr, 'H'},
 					 {"scale", required_argument, nullptr, 'x'},
 					 {"supersample", required_argument, nullptr, 'a'},
 					 {"no-texture", no_argument, nullptr, 'n'},
@@ -53,12 +57,13 @@ int simulate_main(int argc, char **argv)
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
 	std::string scene_name = "default", config, out, sheet;
-	unsigned long long seed = 1;
+	unsigned long long seed = 1, head_seed = 0;
+	bool head_seed_given = false, canonical_head = false;
 	double scale = 1;
 	int supersample = 0;
 	bool texture = true;
 	optind = 1;
-	for (int opt; (opt = getopt_long(argc, argv, "s:c:S:x:a:nk:o:h", options, nullptr)) != -1;) {
+	for (int opt; (opt = getopt_long(argc, argv, "s:c:S:H:x:a:nk:o:h", options, nullptr)) != -1;) {
 		char *end = nullptr;
 		switch (opt) {
 		case 's':
@@ -72,6 +77,16 @@ int simulate_main(int argc, char **argv)
 			seed = std::strtoull(optarg, &end, 10);
 			if (!*optarg || *end || errno || optarg[0] == '-')
 				return bad("--seed must be a non-negative integer", optarg);
+			break;
+		case 'H':
+			head_seed_given = true;
+			canonical_head = std::strcmp(optarg, "canonical") == 0;
+			if (canonical_head)
+				break;
+			errno = 0;
+			head_seed = std::strtoull(optarg, &end, 10);
+			if (!*optarg || *end || errno || optarg[0] == '-')
+				return bad("--head-seed must be a non-negative integer or 'canonical'", optarg);
 			break;
 		case 'x':
 			scale = std::strtod(optarg, &end);
@@ -114,6 +129,11 @@ int simulate_main(int argc, char **argv)
 		std::fprintf(stderr, "facescan simulate: %s\n", st.message().c_str());
 		return 2;
 	}
+	if (!head_seed_given)
+		head_seed = seed;
+	if (!canonical_head)
+		scene.head.shape = sim::random_head_shape(head_seed);
+	const std::string head_desc = canonical_head ? "canonical" : "seed " + std::to_string(head_seed);
 	sim::Rig rig = sim::default_rig();
 	if (!config.empty())
 		st = sim::load_rig(config, &rig);
@@ -159,10 +179,10 @@ int simulate_main(int argc, char **argv)
 		return 1;
 	}
 	double wsecs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-	std::printf("simulate: scene %s, seed %llu, %zu cameras %dx%d, %zu projectors, pattern %s\n"
+	std::printf("simulate: scene %s, seed %llu, head %s, %zu cameras %dx%d, %zu projectors, pattern %s\n"
 		    "simulate: head %zu triangles; rendered %zu pattern + %zu texture frames in %.2f s"
 		    " (%.2f s CPU; writing %.2f s) -> %s\n",
-		    scene.name.c_str(), seed, rig.cameras.size(), rig.cameras[0].model.size.width,
+		    scene.name.c_str(), seed, head_desc.c_str(), rig.cameras.size(), rig.cameras[0].model.size.width,
 		    rig.cameras[0].model.size.height, rig.projectors.size(), pattern.id.c_str(),
 		    truth.head.triangles.size(), set.frames.size(), set.textures.size(),
 		    truth.render_seconds, cpu, wsecs, out.c_str());
