@@ -1,68 +1,15 @@
 // facescan status: what facescand is doing now.
-#include "daemon/client.hpp"
 #include "daemon/report_text.hpp"
-
-#include <cstdio>
-#include <getopt.h>
-#include <string>
+#include "facescan/daemon_query.hpp"
 
 namespace facescan::cli {
 
 int status_main(int argc, char **argv)
 {
-	static const option opts[] = {{"socket", required_argument, nullptr, 's'},
-				      {"json", no_argument, nullptr, 'j'},
-				      {"help", no_argument, nullptr, 'h'},
-				      {nullptr, 0, nullptr, 0}};
-	std::string sock = daemon::default_socket_path();
-	bool as_json = false;
-	int c;
-	optind = 1;
-	while ((c = getopt_long(argc, argv, "s:jh", opts, nullptr)) != -1) {
-		switch (c) {
-		case 's':
-			sock = optarg;
-			break;
-		case 'j':
-			as_json = true;
-			break;
-		case 'h':
-			std::printf("usage: facescan status [--json] [--socket PATH]\n"
-				    "Prints facescand's state, the scan in flight, the MCU link and the spool.\n"
-				    "  -j, --json        print the daemon's JSON reply\n"
-				    "  -s, --socket PATH control socket (default $FACESCAN_SOCKET or %s)\n",
-				    daemon::default_socket_path().c_str());
-			return 0;
-		default:
-			std::fprintf(stderr, "facescan status: bad arguments (see facescan status --help)\n");
-			return 2;
-		}
-	}
-	if (optind < argc) {
-		std::fprintf(stderr, "facescan status: unexpected argument '%s'\n", argv[optind]);
-		return 2;
-	}
-	nlohmann::json reply;
-	Status s = daemon::control_request(
-		sock, {{"cmd", "status"}},
-		[&](const nlohmann::json &j) {
-			reply = j;
-			return false;
-		},
-		10000);
-	if (!s.ok()) {
-		std::fprintf(stderr, "facescan status: %s\n", s.message().c_str());
-		return 1;
-	}
-	if (as_json) {
-		std::printf("%s\n", reply.dump(1).c_str());
-	} else if (!reply.value("ok", false)) {
-		std::fprintf(stderr, "facescan status: %s\n", reply.value("message", "refused").c_str());
-		return 1;
-	} else {
-		std::printf("%s", daemon::status_text(reply).c_str());
-	}
-	return reply.value("ok", false) ? 0 : 1;
+	static const DaemonQuery query = {
+		"status", "Prints facescand's state, the scan in flight, the MCU link and the spool.",
+		[](const nlohmann::json &reply) { return daemon::status_text(reply); }};
+	return run_daemon_query(query, argc, argv);
 }
 
 } // namespace facescan::cli
