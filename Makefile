@@ -52,6 +52,8 @@ BINS     := $(foreach m,$(MAIN_SRC),$(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(
 TEST_SRC  := $(wildcard tests/*/test_*.c tests/*/test_*.cpp)
 TEST_BINS := $(patsubst tests/%,$(OUT)/tests/%,$(basename $(TEST_SRC)))
 
+# `make` alone is the release build, whatever target an included fragment defines first.
+.DEFAULT_GOAL := all
 EXTRA_ALL :=
 # Firmware (arm-none-eabi images, native build) and other fragments add their own rules.
 -include $(wildcard firmware/*.mk tools/*.mk tests/*.mk)

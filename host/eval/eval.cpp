@@ -168,11 +168,13 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	const MeshDistance to_recon(recon.positions, recon.triangles, std::max(2.0 * rec_edge, 1.0));
 	int covered = 0;
 	r.truth_points = int(pts.size());
+	r.truth_status.assign(pts.size(), -1);
 	for (size_t i = 0; i < pts.size(); ++i) {
 		if (cams_seeing[i] < params.min_cameras || !lit[i])
 			continue;
 		r.truth_counted++;
-		covered += to_recon.distance(pts[i], params.completeness_mm) <= params.completeness_mm;
+		r.truth_status[i] = to_recon.distance(pts[i], params.completeness_mm) <= params.completeness_mm;
+		covered += r.truth_status[i];
 	}
 	r.completeness = r.truth_counted ? double(covered) / r.truth_counted : 0;
 	*ret_result = r;

@@ -48,6 +48,8 @@ struct EvalResult {
 	int truth_points = 0;		// truth vertices
 	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)
 	int vertices = 0, triangles = 0;
+	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
+	std::vector<signed char> truth_status;
 };
 
 /// Compares `recon` with `truth` (both world mm). Truth points are the truth mesh's vertices

@@ -205,6 +205,12 @@ struct MatchParams {
 	/// fewer), pass the epipolar and depth checks.
 	double min_part_agreement = 0.6;
 	int min_part_support = 3;
+	/// Grow the matches along both grids to squares without a usable code word (see match.cpp).
+	bool grow = true;
+	/// Epipolar limit for grown squares. The grid topology already names the candidate, so this
+	/// only refuses gross errors; grown squares are often the ones without corners (their area
+	/// centroid is not projectively invariant) or half lit (mixed, dim), so it is looser.
+	double grow_max_epipolar_px = 3.0;
 };
 
 /// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same

@@ -94,6 +94,62 @@ std::vector<int> grid_parts(const CameraDetections &d, int cols)
 	return part;
 }
 
+// Growing the matches along the grid (stage 4b). The code only serves to find where a square
+// is in the other view; once a square is matched, its grid neighbour in direction d in camera a
+// and the neighbour in direction d of its partner in camera b are the same projected square
+// whether or not its own code word could be read — a square with a missing neighbour, a dim or
+// mixed colour (a projector seam), a slide border cell. Such a candidate is taken when the
+// geometry agrees (epipolar line, plausible depth, corners), its letters and cells do not
+// contradict, and every neighbour already matched points to the same square in b.
+template <typename AddMatch>
+void grow_matches(const CameraDetections &a, const CameraDetections &b, const Geometry &g,
+		  const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb,
+		  const MatchParams &params, std::vector<size_t> queue, std::vector<int> *match_of_a,
+		  std::vector<int> *match_of_b, AddMatch add_square_match, PairMatches *out)
+{
+	auto consistent = [&](size_t i, int j) {
+		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
+		// A square flagged irregular in both views is cut or bent in both; in one view only, it is
+		// usually bent over a curve (lip, nose) there, and its centroid still pins it.
+		if (sa.irregular && sb.irregular)
+			return false;
+		if (sa.cell >= 0 && sb.cell >= 0 && sa.cell != sb.cell)
+			return false;
+		if (sa.letter >= 0 && sb.letter >= 0 && sa.letter != sb.letter)
+			return false;
+		const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
+		double z = 0;
+		if (g.epipolar(pa, pb) > params.grow_max_epipolar_px || !g.depth(pa, pb, &z) ||
+		    z < params.min_depth_mm || z > params.max_depth_mm)
+			return false;
+		// Topology: every matched neighbour of i must be matched to j's neighbour on that side.
+		int support = 0;
+		for (int d = 0; d < 4; d++) {
+			const int ia = sa.neighbours[size_t(d)];
+			if (ia < 0 || (*match_of_a)[size_t(ia)] < 0)
+				continue;
+			if ((*match_of_a)[size_t(ia)] != sb.neighbours[size_t(d)])
+				return false;
+			support++;
+		}
+		return support >= 1;
+	};
+	while (!queue.empty()) {
+		const size_t i = queue.back();
+		queue.pop_back();
+		const int j = (*match_of_a)[i];
+		for (int d = 0; d < 4; d++) {
+			const int i2 = a.squares[i].neighbours[size_t(d)], j2 = b.squares[size_t(j)].neighbours[size_t(d)];
+			if (i2 < 0 || j2 < 0 || (*match_of_a)[size_t(i2)] >= 0 || (*match_of_b)[size_t(j2)] >= 0)
+				continue;
+			if (!consistent(size_t(i2), j2) || !add_square_match(size_t(i2), j2, true))
+				continue;
+			out->grown++;
+			queue.push_back(size_t(i2));
+		}
+	}
+}
+
 } // namespace
 
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
@@ -179,33 +235,24 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 			taken[size_t(partner[i])]++;
 		}
 	}
-	for (size_t i = 0; i < a.squares.size(); i++) {
-		int j = partner[i];
-		if (j < 0)
-			continue;
-		if (taken[size_t(j)] > 1) { // two copies in a claim one square in b
-			out.rejected_ambiguous++;
-			continue;
-		}
+	// The square pair (i, j) as matches (centroid, and corners when both views have them), or
+	// false when a corner is off its epipolar line: a square cut differently in the two views
+	// (an occluding contour, a shadow seen from one side) is not the same surface patch, so
+	// none of its features is trusted.
+	std::vector<int> match_of_a(a.squares.size(), -1), match_of_b(b.squares.size(), -1);
+	auto add_square_match = [&](size_t i, int j, bool grown) {
 		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
-		// A square cut differently in the two views (an occluding contour, a shadow seen from one
-		// side) has corners off their epipolar lines; then none of its features is trusted.
-		bool corners = params.corners && sa.has_corners && sb.has_corners;
-		if (corners) {
-			int off = 0;
-			for (int k = 0; k < 4; k++) {
-				size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
-				off += g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px;
-			}
-			if (off) {
-				out.rejected_epipolar++;
-				continue;
-			}
+		const bool corners = params.corners && sa.has_corners && sb.has_corners;
+		for (int k = 0; corners && k < 4; k++) {
+			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
+			if (g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px)
+				return false;
 		}
 		PointMatch pm;
 		pm.square_a = int(i);
 		pm.square_b = j;
-		pm.cell = sa.cell;
+		pm.cell = sa.cell >= 0 ? sa.cell : sb.cell;
+		pm.grown = grown;
 		pm.feature = kCentroid;
 		pm.a = sa.centroid;
 		pm.b = sb.centroid;
@@ -216,7 +263,27 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 			pm.b = sb.corners[size_t(k)];
 			out.matches.push_back(pm);
 		}
+		match_of_a[i] = j;
+		match_of_b[size_t(j)] = int(i);
+		return true;
+	};
+	std::vector<size_t> seeds;
+	for (size_t i = 0; i < a.squares.size(); i++) {
+		int j = partner[i];
+		if (j < 0)
+			continue;
+		if (taken[size_t(j)] > 1) { // two copies in a claim one square in b
+			out.rejected_ambiguous++;
+			continue;
+		}
+		if (!add_square_match(i, j, false)) {
+			out.rejected_epipolar++;
+			continue;
+		}
+		seeds.push_back(i);
 	}
+	if (params.grow)
+		grow_matches(a, b, g, na, nb, params, seeds, &match_of_a, &match_of_b, add_square_match, &out);
 	*ret = std::move(out);
 	return {};
 }

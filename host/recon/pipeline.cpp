@@ -133,14 +133,22 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 			(m.feature == kCentroid ? pr.centroid_matches : pr.corner_matches)++;
 		pr.rejected_epipolar = matches[p].rejected_epipolar;
 		pr.rejected_ambiguous = matches[p].rejected_ambiguous;
+		pr.grown = matches[p].grown;
 		report.pairs.push_back(pr);
 	}
-	int all = 0, centroids = 0;
-	for (const PairReport &pr : report.pairs) {
-		all += pr.matches;
-		centroids += pr.centroid_matches;
-	}
-	report.corner_multiplier = centroids ? double(all) / centroids : 0;
+	// The paper's multiplier measures the corner detector: over the squares matched by their code
+	// word (the paper's set). Grown squares are mostly the ones without usable corners, so the
+	// ratio over all matches is reported beside it.
+	int all = 0, centroids = 0, coded = 0, coded_centroids = 0;
+	for (const PairMatches &pm : matches)
+		for (const PointMatch &m : pm.matches) {
+			all++;
+			centroids += m.feature == kCentroid;
+			coded += !m.grown;
+			coded_centroids += !m.grown && m.feature == kCentroid;
+		}
+	report.corner_multiplier = coded_centroids ? double(coded) / coded_centroids : 0;
+	report.points_per_square = centroids ? double(all) / centroids : 0;
 	timer.lap("match");
 
 	// Stage 6.
@@ -213,6 +221,7 @@ std::string report_json(const ReconReport &r)
 				 {"corner_matches", p.corner_matches},
 				 {"rejected_epipolar", p.rejected_epipolar},
 				 {"rejected_ambiguous", p.rejected_ambiguous},
+				 {"grown", p.grown},
 				 {"triangulated", p.triangulate.kept},
 				 {"dropped_reprojection", p.triangulate.dropped_reprojection},
 				 {"dropped_depth", p.triangulate.dropped_depth},
@@ -238,6 +247,7 @@ std::string report_json(const ReconReport &r)
 			{"vertex_colours", r.texture.vertex_colours},
 			{"atlas", {r.texture.atlas.width, r.texture.atlas.height}}};
 	j["corner_multiplier"] = r.corner_multiplier;
+	j["points_per_square"] = r.points_per_square;
 	j["vertices"] = r.vertices;
 	j["triangles"] = r.triangles;
 	if (r.peak_rss_kb > 0)

@@ -51,6 +51,7 @@ struct PairReport {
 	int cam_a = -1, cam_b = -1;
 	int matches = 0, centroid_matches = 0, corner_matches = 0;
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
+	int grown = 0; // squares matched by growing along the grid
 	TriangulateStats triangulate;
 	MeshingStats meshing;
 };
@@ -63,8 +64,11 @@ struct ReconReport {
 	std::vector<RegistrationPair> registration;
 	FusionStats fusion;
 	TextureStats texture;
-	/// Matched points (centroids + corners) over matched centroids: the paper's ~5x.
+	/// Matched points (centroids + corners) over matched centroids, over the squares matched by
+	/// their code word: the paper's ~5x.
 	double corner_multiplier = 0;
+	/// Matched points over matched centroids counting the grown squares too (fewer corners).
+	double points_per_square = 0;
 	int vertices = 0, triangles = 0;
 	long peak_rss_kb = 0; // filled by the caller (getrusage) when it wants it reported
 };

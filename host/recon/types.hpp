@@ -29,7 +29,8 @@ struct Square {
 	int cell = -1;		// decoded matrix cell r*cols+c, -1 not decoded
 	bool corrected = false; // decoded after correcting a wrong or missing letter
 	/// Its shape disagrees with its grid neighbours' (cut by a shadow or an occluding edge, bent
-	/// over a lip): its features are not surface points of the slide's square, so it is not matched.
+	/// over a lip): its corners are not surface points of the slide's square. Not matched by its code;
+	/// growing (match.cpp) may match its centroid when the other view sees it regular.
 	bool irregular = false;
 	double area = 0;	// pixels
 };
@@ -47,13 +48,15 @@ struct PointMatch {
 	int square_a = -1;	// index into cam_a's CameraDetections::squares
 	int square_b = -1;	// index into cam_b's
 	int feature = kCentroid;
-	int cell = -1;
+	int cell = -1;		// -1 when neither square's code word was read (a grown match)
+	bool grown = false;	// found by growing along the grid, not by its cell id (match.cpp)
 };
 
 struct PairMatches {
 	int cam_a = -1, cam_b = -1; // consecutive cameras: (0,1), (1,2), (2,3)
 	std::vector<PointMatch> matches;
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
+	int grown = 0; // squares matched by growing along the grid (no usable code word of their own)
 };
 
 /// One pair's partial model, points in world mm. Index i of every vector is one point.

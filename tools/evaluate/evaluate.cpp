@@ -27,6 +27,8 @@ static void evaluate_usage(FILE *out)
 		     "                   default: the built-in default rig\n"
 		     "  --within MM      completeness distance (default 1 mm)\n"
 		     "  --json OUT.json  also write the numbers as JSON\n"
+		     "  --coverage OUT.ply  the truth mesh coloured by completeness: green covered,\n"
+		     "                   red missed, grey not counted (seen by < 2 cameras or unlit)\n"
 		     "  --report R.json  the recon report of MESH (facescan recon --report), and\n"
 		     "  --markdown NAME  print one row of docs/benchmarks.md's table for it instead\n");
 }
@@ -38,9 +40,10 @@ int evaluate_main(int argc, char **argv)
 					 {"within", required_argument, nullptr, 'w'},
 					 {"report", required_argument, nullptr, 'R'},
 					 {"markdown", required_argument, nullptr, 'm'},
+					 {"coverage", required_argument, nullptr, 'c'},
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
-	std::string rig_path, json_path, report_path, row_name;
+	std::string rig_path, json_path, report_path, row_name, coverage_path;
 	eval::EvalParams params;
 	optind = 1;
 	for (int opt; (opt = getopt_long(argc, argv, "h", options, nullptr)) != -1;) {
@@ -56,6 +59,9 @@ int evaluate_main(int argc, char **argv)
 			break;
 		case 'm':
 			row_name = optarg;
+			break;
+		case 'c':
+			coverage_path = optarg;
 			break;
 		case 'w': {
 			char *end = nullptr;
@@ -109,6 +115,21 @@ int evaluate_main(int argc, char **argv)
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
 		return 1;
+	}
+	if (!coverage_path.empty()) {
+		// Where completeness is lost, to look at in a mesh viewer (BGR colours).
+		truth.colours.resize(truth.positions.size());
+		for (size_t i = 0; i < truth.positions.size(); ++i)
+			truth.colours[i] = r.truth_status[i] < 0 ? cv::Vec3b(160, 160, 160)
+					   : r.truth_status[i]	 ? cv::Vec3b(60, 200, 60)
+								 : cv::Vec3b(40, 40, 230);
+		truth.uvs.clear();
+		truth.texture.release();
+		s = mesh_io::write_ply(coverage_path, truth);
+		if (!s.ok()) {
+			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+			return 1;
+		}
 	}
 	if (!row_name.empty()) {
 		std::string text;
