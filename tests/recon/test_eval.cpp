@@ -4,6 +4,7 @@
 #include "cmocka.hpp"
 #include "synthetic_rig.hpp"
 
+#include <cmath>
 #include <cstdio>
 
 using namespace facescan;
@@ -58,6 +59,20 @@ static void test_offset_surface(void **)
 	assert_true(eval::evaluate(half, truth, synth::ring(), {}, eval::EvalParams(), &r).ok());
 	std::printf("half: completeness %.3f\n", r.completeness);
 	assert_true(r.completeness > 0.3 && r.completeness < 0.7);
+	// The per-point verdict (facescan evaluate --coverage) adds up to the figures, and the
+	// missed points are those far from the half that is left.
+	assert_int_equal(r.truth_status.size(), truth.positions.size());
+	int counted = 0, covered = 0;
+	for (size_t i = 0; i < r.truth_status.size(); ++i) {
+		counted += r.truth_status[i] >= 0;
+		covered += r.truth_status[i] == 1;
+	}
+	assert_int_equal(counted, r.truth_counted);
+	assert_true(std::abs(double(covered) / counted - r.completeness) < 1e-12);
+	eval::MeshDistance to_half(half.positions, half.triangles, 2.0);
+	for (size_t i = 0; i < r.truth_status.size(); ++i)
+		if (r.truth_status[i] == 0)
+			assert_true(to_half.distance(cv::Point3d(truth.positions[i]), 1.0) > 1.0);
 	assert_int_equal(eval::evaluate(recon::Mesh(), truth, synth::ring(), {}, {}, &r).code(), -EINVAL);
 }
 
