@@ -211,6 +211,19 @@ struct MatchParams {
 	/// only refuses gross errors; grown squares are often the ones without corners (their area
 	/// centroid is not projectively invariant) or half lit (mixed, dim), so it is looser.
 	double grow_max_epipolar_px = 3.0;
+	/// Guided matching of the squares still left (see match.cpp): depth range from the matched
+	/// squares of camera a within this many grid pitches (at least this many of them), widened
+	/// by this margin.
+	bool guide = true;
+	int guide_rounds = 2;
+	double guide_radius_pitches = 2.5;
+	int guide_min_around = 3;
+	double guide_depth_margin_mm = 8;
+	/// A grown or guided square's centroid must lie within this distance of the quadric fitted to
+	/// its `surface_points` nearest matched points of other squares within `surface_radius_mm`.
+	double max_surface_residual_mm = 2.5;
+	int surface_points = 10;
+	double surface_radius_mm = 20;
 };
 
 /// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same

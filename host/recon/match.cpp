@@ -48,6 +48,15 @@ struct Geometry {
 	// Depth in camera a of the midpoint of the two rays; false when behind either camera.
 	bool depth(const cv::Point2d &na, const cv::Point2d &nb, double *ret) const
 	{
+		cv::Vec3d p;
+		if (!point(na, nb, &p))
+			return false;
+		*ret = p[2];
+		return true;
+	}
+	// The midpoint of the two rays in camera a's frame, mm; false when behind either camera.
+	bool point(const cv::Point2d &na, const cv::Point2d &nb, cv::Vec3d *ret) const
+	{
 		cv::Vec3d da(na.x, na.y, 1), ob = -(R.t() * t), db = R.t() * cv::Vec3d(nb.x, nb.y, 1);
 		double a = da.dot(da), b = da.dot(db), c = db.dot(db);
 		cv::Vec3d w = -ob;
@@ -58,8 +67,7 @@ struct Geometry {
 		double s = (b * e - c * d) / den, u = (a * e - b * d) / den;
 		if (s <= 0 || u <= 0)
 			return false;
-		cv::Vec3d p = 0.5 * (s * da + (ob + u * db));
-		*ret = p[2];
+		*ret = 0.5 * (s * da + (ob + u * db));
 		return true;
 	}
 };
@@ -94,60 +102,247 @@ std::vector<int> grid_parts(const CameraDetections &d, int cols)
 	return part;
 }
 
-// Growing the matches along the grid (stage 4b). The code only serves to find where a square
-// is in the other view; once a square is matched, its grid neighbour in direction d in camera a
-// and the neighbour in direction d of its partner in camera b are the same projected square
-// whether or not its own code word could be read — a square with a missing neighbour, a dim or
-// mixed colour (a projector seam), a slide border cell. Such a candidate is taken when the
-// geometry agrees (epipolar line, plausible depth, corners), its letters and cells do not
-// contradict, and every neighbour already matched points to the same square in b.
+// Matching the squares the code did not match (stages 4b and 4c). The code only serves to find
+// where a square is in the other view; a square whose code word could not be read (a missing
+// neighbour, a dim or mixed colour in a projector seam, a slide border cell) or whose grid links
+// are broken (around a nostril, a lip, an eyelid) is still the same surface patch in both views,
+// and can be found from the squares already matched around it:
+//  - growing: once a square is matched, its grid neighbour in direction d in camera a and the
+//    neighbour in direction d of its partner in camera b are the same projected square, when
+//    every neighbour already matched agrees;
+//  - guiding: the matched squares around a square of camera a bound its depth, and along its
+//    epipolar line in camera b exactly one unmatched square may lie in that range (and it must
+//    not be the only candidate of another square of a).
+// Either way the pair must pass the same tests (compatible()): letters and cells do not
+// contradict, the epipolar line and a plausible depth. Once all are matched, prune_off_surface()
+// drops those that lie off the surface their neighbours describe.
 template <typename AddMatch>
-void grow_matches(const CameraDetections &a, const CameraDetections &b, const Geometry &g,
-		  const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb,
-		  const MatchParams &params, std::vector<size_t> queue, std::vector<int> *match_of_a,
-		  std::vector<int> *match_of_b, AddMatch add_square_match, PairMatches *out)
-{
-	auto consistent = [&](size_t i, int j) {
-		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
+class Extension {
+public:
+	Extension(const CameraDetections &a, const CameraDetections &b, const Geometry &g,
+		  const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb, const MatchParams &params,
+		  std::vector<int> *match_of_a, std::vector<int> *match_of_b, AddMatch add_square_match)
+		: a_(a), b_(b), g_(g), na_(na), nb_(nb), params_(params), match_of_a_(*match_of_a),
+		  match_of_b_(*match_of_b), add_(add_square_match)
+	{
+		std::vector<double> links;
+		for (const Square &s : a.squares)
+			for (int j : s.neighbours)
+				if (j >= 0)
+					links.push_back(cv::norm(s.centroid - a.squares[size_t(j)].centroid));
+		if (!links.empty()) {
+			std::nth_element(links.begin(), links.begin() + long(links.size() / 2), links.end());
+			radius_ = params.guide_radius_pitches * links[links.size() / 2];
+		}
+	}
+
+	/// Grows from the matched squares `queue` of camera a; returns how many it added.
+	int grow(std::vector<size_t> queue)
+	{
+		int added = 0;
+		while (!queue.empty()) {
+			const size_t i = queue.back();
+			queue.pop_back();
+			const int j = match_of_a_[i];
+			for (int d = 0; d < 4; d++) {
+				const int i2 = a_.squares[i].neighbours[size_t(d)];
+				const int j2 = b_.squares[size_t(j)].neighbours[size_t(d)];
+				if (i2 < 0 || j2 < 0 || match_of_a_[size_t(i2)] >= 0 || match_of_b_[size_t(j2)] >= 0)
+					continue;
+				if (!topology_agrees(size_t(i2), j2) || !compatible(size_t(i2), j2, nullptr) ||
+				    !accept(size_t(i2), j2))
+					continue;
+				added++;
+				queue.push_back(size_t(i2));
+			}
+		}
+		return added;
+	}
+
+	/// One round of guided matching; returns the squares of camera a it matched.
+	std::vector<size_t> guide()
+	{
+		std::vector<double> depth(a_.squares.size(), -1);
+		for (size_t i = 0; i < a_.squares.size(); i++) {
+			const int j = match_of_a_[i];
+			double z = 0;
+			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z))
+				depth[i] = z;
+		}
+		std::vector<int> choice(a_.squares.size(), -1), chosen_by(b_.squares.size(), 0);
+		for (size_t i = 0; i < a_.squares.size(); i++) {
+			if (match_of_a_[i] >= 0)
+				continue;
+			double lo = 1e300, hi = -1e300;
+			int around = 0;
+			for (size_t k = 0; k < a_.squares.size(); k++)
+				if (depth[k] > 0 && near(i, k)) {
+					lo = std::min(lo, depth[k]);
+					hi = std::max(hi, depth[k]);
+					around++;
+				}
+			if (around < params_.guide_min_around)
+				continue;
+			int found = -1, count = 0;
+			for (size_t j = 0; j < b_.squares.size(); j++) {
+				double z = 0;
+				if (match_of_b_[j] >= 0 || !compatible(i, int(j), &z) ||
+				    z < lo - params_.guide_depth_margin_mm || z > hi + params_.guide_depth_margin_mm)
+					continue;
+				found = int(j);
+				count++;
+			}
+			if (count == 1) {
+				choice[i] = found;
+				chosen_by[size_t(found)]++;
+			}
+		}
+		std::vector<size_t> out;
+		for (size_t i = 0; i < a_.squares.size(); i++)
+			if (choice[i] >= 0 && chosen_by[size_t(choice[i])] == 1 && accept(i, choice[i]))
+				out.push_back(i);
+		return out;
+	}
+
+private:
+	bool accept(size_t i, int j) { return add_(i, j, true); }
+
+	bool near(size_t i, size_t k) const
+	{
+		return cv::norm(a_.squares[k].centroid - a_.squares[i].centroid) <= radius_;
+	}
+
+	// Every matched grid neighbour of i must be matched to j's neighbour on that side.
+	bool topology_agrees(size_t i, int j) const
+	{
+		for (int d = 0; d < 4; d++) {
+			const int ia = a_.squares[i].neighbours[size_t(d)];
+			if (ia >= 0 && match_of_a_[size_t(ia)] >= 0 &&
+			    match_of_a_[size_t(ia)] != b_.squares[size_t(j)].neighbours[size_t(d)])
+				return false;
+		}
+		return true;
+	}
+
+	bool compatible(size_t i, int j, double *ret_depth) const
+	{
+		const Square &sa = a_.squares[i], &sb = b_.squares[size_t(j)];
 		// A square flagged irregular in both views is cut or bent in both; in one view only, it is
 		// usually bent over a curve (lip, nose) there, and its centroid still pins it.
 		if (sa.irregular && sb.irregular)
 			return false;
-		if (sa.cell >= 0 && sb.cell >= 0 && sa.cell != sb.cell)
+		if ((sa.cell >= 0 && sb.cell >= 0 && sa.cell != sb.cell) ||
+		    (sa.letter >= 0 && sb.letter >= 0 && sa.letter != sb.letter))
 			return false;
-		if (sa.letter >= 0 && sb.letter >= 0 && sa.letter != sb.letter)
-			return false;
-		const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
+		const cv::Point2d &pa = na_[i * kFeatureCount], &pb = nb_[size_t(j) * kFeatureCount];
 		double z = 0;
-		if (g.epipolar(pa, pb) > params.grow_max_epipolar_px || !g.depth(pa, pb, &z) ||
-		    z < params.min_depth_mm || z > params.max_depth_mm)
+		if (g_.epipolar(pa, pb) > params_.grow_max_epipolar_px || !g_.depth(pa, pb, &z) ||
+		    z < params_.min_depth_mm || z > params_.max_depth_mm)
 			return false;
-		// Topology: every matched neighbour of i must be matched to j's neighbour on that side.
-		int support = 0;
-		for (int d = 0; d < 4; d++) {
-			const int ia = sa.neighbours[size_t(d)];
-			if (ia < 0 || (*match_of_a)[size_t(ia)] < 0)
-				continue;
-			if ((*match_of_a)[size_t(ia)] != sb.neighbours[size_t(d)])
-				return false;
-			support++;
-		}
-		return support >= 1;
-	};
-	while (!queue.empty()) {
-		const size_t i = queue.back();
-		queue.pop_back();
-		const int j = (*match_of_a)[i];
-		for (int d = 0; d < 4; d++) {
-			const int i2 = a.squares[i].neighbours[size_t(d)], j2 = b.squares[size_t(j)].neighbours[size_t(d)];
-			if (i2 < 0 || j2 < 0 || (*match_of_a)[size_t(i2)] >= 0 || (*match_of_b)[size_t(j2)] >= 0)
-				continue;
-			if (!consistent(size_t(i2), j2) || !add_square_match(size_t(i2), j2, true))
-				continue;
-			out->grown++;
-			queue.push_back(size_t(i2));
-		}
+		if (ret_depth)
+			*ret_depth = z;
+		return true;
 	}
+
+	const CameraDetections &a_, &b_;
+	const Geometry &g_;
+	const std::vector<cv::Point2d> &na_, &nb_;
+	const MatchParams &params_;
+	std::vector<int> &match_of_a_, &match_of_b_;
+	AddMatch add_;
+	double radius_ = 0;
+};
+
+// Distance from p to the quadric height field z = f(x, y) fitted, over the plane of best fit, to
+// `points` (a nose tip is curved within a square or two, so a plane would not do). -1 when the
+// fit is degenerate.
+double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p)
+{
+	const int k = int(points.size());
+	if (k < 6)
+		return -1;
+	cv::Vec3d mean(0, 0, 0);
+	for (const cv::Vec3d &q : points)
+		mean += q;
+	mean *= 1.0 / k;
+	cv::Matx33d cov = cv::Matx33d::zeros();
+	for (const cv::Vec3d &q : points)
+		cov += (q - mean) * (q - mean).t();
+	cv::Mat values, vectors;
+	cv::eigen(cv::Mat(cov), values, vectors); // descending eigenvalues: the normal is the last row
+	const cv::Vec3d u(vectors.ptr<double>(0)), v(vectors.ptr<double>(1)), n(vectors.ptr<double>(2));
+	cv::Mat A(k, 6, CV_64F), h(k, 1, CV_64F), c;
+	for (int i = 0; i < k; i++) {
+		const cv::Vec3d d = points[size_t(i)] - mean;
+		const double x = d.dot(u), y = d.dot(v);
+		double *row = A.ptr<double>(i);
+		row[0] = x * x, row[1] = x * y, row[2] = y * y, row[3] = x, row[4] = y, row[5] = 1;
+		h.at<double>(i) = d.dot(n);
+	}
+	if (!cv::solve(A, h, c, cv::DECOMP_SVD))
+		return -1;
+	const cv::Vec3d d = p - mean;
+	const double x = d.dot(u), y = d.dot(v);
+	const double *f = c.ptr<double>();
+	return std::fabs(d.dot(n) - (f[0] * x * x + f[1] * x * y + f[2] * y * y + f[3] * x + f[4] * y + f[5]));
+}
+
+// Removes the grown and guided squares, and the squares matched by their centroid alone (no
+// corner to check them by), whose centroid lies off the surface the other matched points describe
+// around it (its `surface_points` nearest, from other squares, within
+// `surface_radius_mm`): a wrong candidate along the epipolar line, or a centroid shifted by a cut
+// in one view. Judged after all matching, so the neighbourhood surrounds the square. Twice: a bad
+// square bends its neighbours' fits. Returns how many squares it removed.
+int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb,
+		     size_t squares_a, const MatchParams &params, PairMatches *pm)
+{
+	int removed = 0;
+	for (int pass = 0; pass < 2; pass++) {
+		std::vector<cv::Vec3d> pts(pm->matches.size());
+		std::vector<char> ok(pm->matches.size(), 0);
+		for (size_t m = 0; m < pm->matches.size(); m++) {
+			const PointMatch &x = pm->matches[m];
+			ok[m] = g.point(na[size_t(x.square_a) * kFeatureCount + size_t(x.feature)],
+					nb[size_t(x.square_b) * kFeatureCount + size_t(x.feature)], &pts[m]);
+		}
+		std::vector<char> drop_square_a(squares_a, 0);
+		// Squares matched by their centroid alone: no corner passed the epipolar test for them.
+		std::vector<char> has_corners(squares_a, 0);
+		for (const PointMatch &x : pm->matches)
+			has_corners[size_t(x.square_a)] |= x.feature != kCentroid;
+		std::vector<std::pair<double, size_t>> nearest;
+		std::vector<cv::Vec3d> hood;
+		for (size_t m = 0; m < pm->matches.size(); m++) {
+			const PointMatch &x = pm->matches[m];
+			if (x.feature != kCentroid || !ok[m] || (!x.grown && has_corners[size_t(x.square_a)]))
+				continue;
+			nearest.clear();
+			for (size_t o = 0; o < pm->matches.size(); o++)
+				if (ok[o] && pm->matches[o].square_a != x.square_a)
+					nearest.emplace_back(cv::norm(pts[o] - pts[m]), o);
+			const size_t k = size_t(params.surface_points);
+			if (nearest.size() < k)
+				continue;
+			std::partial_sort(nearest.begin(), nearest.begin() + long(k), nearest.end());
+			hood.clear();
+			for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
+				hood.push_back(pts[nearest[i].second]);
+			if (hood.size() < k / 2)
+				continue; // alone: nothing to judge it by
+			if (quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
+				drop_square_a[size_t(x.square_a)] = 1;
+		}
+		int squares = 0;
+		for (char d : drop_square_a)
+			squares += d;
+		if (!squares)
+			break;
+		pm->matches.erase(std::remove_if(pm->matches.begin(), pm->matches.end(),
+						 [&](const PointMatch &x) { return drop_square_a[size_t(x.square_a)] != 0; }),
+				  pm->matches.end());
+		removed += squares;
+	}
+	return removed;
 }
 
 } // namespace
@@ -282,8 +477,18 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		}
 		seeds.push_back(i);
 	}
+	Extension extend(a, b, g, na, nb, params, &match_of_a, &match_of_b, add_square_match);
 	if (params.grow)
-		grow_matches(a, b, g, na, nb, params, seeds, &match_of_a, &match_of_b, add_square_match, &out);
+		out.grown += extend.grow(seeds);
+	for (int round = 0; params.guide && round < params.guide_rounds; round++) {
+		std::vector<size_t> found = extend.guide();
+		if (found.empty())
+			break;
+		out.guided += int(found.size());
+		if (params.grow)
+			out.grown += extend.grow(found);
+	}
+	out.pruned = prune_off_surface(g, na, nb, a.squares.size(), params, &out);
 	*ret = std::move(out);
 	return {};
 }

@@ -134,6 +134,8 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		pr.rejected_epipolar = matches[p].rejected_epipolar;
 		pr.rejected_ambiguous = matches[p].rejected_ambiguous;
 		pr.grown = matches[p].grown;
+		pr.guided = matches[p].guided;
+		pr.pruned = matches[p].pruned;
 		report.pairs.push_back(pr);
 	}
 	// The paper's multiplier measures the corner detector: over the squares matched by their code
@@ -222,6 +224,8 @@ std::string report_json(const ReconReport &r)
 				 {"rejected_epipolar", p.rejected_epipolar},
 				 {"rejected_ambiguous", p.rejected_ambiguous},
 				 {"grown", p.grown},
+				 {"guided", p.guided},
+				 {"pruned", p.pruned},
 				 {"triangulated", p.triangulate.kept},
 				 {"dropped_reprojection", p.triangulate.dropped_reprojection},
 				 {"dropped_depth", p.triangulate.dropped_depth},

@@ -51,7 +51,9 @@ struct PairReport {
 	int cam_a = -1, cam_b = -1;
 	int matches = 0, centroid_matches = 0, corner_matches = 0;
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
-	int grown = 0; // squares matched by growing along the grid
+	int grown = 0;	// squares matched by growing along the grid
+	int guided = 0; // ... by guided search along the epipolar line
+	int pruned = 0; // grown, guided or centroid-only squares dropped as off their neighbours' surface
 	TriangulateStats triangulate;
 	MeshingStats meshing;
 };

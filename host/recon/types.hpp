@@ -57,6 +57,8 @@ struct PairMatches {
 	std::vector<PointMatch> matches;
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
 	int grown = 0; // squares matched by growing along the grid (no usable code word of their own)
+	int guided = 0; // squares matched along the epipolar line within their neighbours' depth
+	int pruned = 0; // grown, guided or centroid-only squares removed as off their neighbours' surface
 };
 
 /// One pair's partial model, points in world mm. Index i of every vector is one point.

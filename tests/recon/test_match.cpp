@@ -7,6 +7,7 @@
 
 #include <opencv2/calib3d.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -225,19 +226,37 @@ static void grows_to_squares_without_code(void **)
 			q.letter = (q.letter + 1) % p.matrix.letters();
 			wrong_letter++;
 		}
-	MatchParams no_grow;
-	no_grow.grow = false;
-	PairMatches before, after;
-	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, no_grow, &before).ok());
+	// Grid links broken around some squares (a nostril, a lip): only guided matching reaches them.
+	for (CameraDetections &d : s.dets)
+		for (size_t i = 0; i < d.squares.size(); i += 9) {
+			for (int &j : d.squares[i].neighbours)
+				if (j >= 0) {
+					for (int &back : d.squares[size_t(j)].neighbours)
+						if (back == int(i))
+							back = -1;
+					j = -1;
+				}
+			d.squares[i].cell = -1;
+		}
+	MatchParams code_only, grow_only;
+	code_only.grow = code_only.guide = false;
+	grow_only.guide = false;
+	PairMatches before, grown, after;
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, code_only, &before).ok());
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, grow_only, &grown).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, MatchParams{}, &after).ok());
-	const Outcome ob = check(s, before), oa = check(s, after);
-	std::printf("codes erased on %d squares: %d of %d square matches without growing, %d with (%d grown), "
-		    "%d wrong\n",
-		    erased, ob.centroids, oa.possible, oa.centroids, after.grown, oa.wrong);
+	const Outcome ob = check(s, before), og = check(s, grown), oa = check(s, after);
+	std::printf("codes erased on %d squares: %d of %d square matches by code, %d grown (%d), %d with "
+		    "guided matching too (%d guided, %d pruned), %d wrong\n",
+		    erased, ob.centroids, oa.possible, og.centroids, grown.grown, oa.centroids, after.guided,
+		    after.pruned, oa.wrong);
 	assert_int_equal(ob.wrong, 0);
+	assert_int_equal(og.wrong, 0);
 	assert_int_equal(oa.wrong, 0);
-	assert_int_equal(before.grown, 0);
-	assert_int_equal(oa.centroids, ob.centroids + after.grown);
+	assert_int_equal(before.grown + before.guided, 0);
+	assert_int_equal(og.centroids, ob.centroids + grown.grown - grown.pruned);
+	assert_true(after.guided > 0);
+	assert_true(oa.centroids > og.centroids);
 	assert_true(oa.centroids >= int(0.85 * oa.possible));
 	assert_true(oa.centroids >= ob.centroids + ob.centroids / 3);
 	for (const PointMatch &m : after.matches) {
@@ -245,6 +264,35 @@ static void grows_to_squares_without_code(void **)
 		assert_false(qa.letter >= 0 && qb.letter >= 0 && qa.letter != qb.letter);
 		assert_false(qa.irregular && qb.irregular);
 	}
+
+	// A square of b without a code word moved along its epipolar line (a centroid shifted by a
+	// cut, or the wrong square in line) passes the 2-D tests but lies off the surface around it.
+	Scene shifted = s;
+	int moved = -1;
+	for (const PointMatch &m : after.matches)
+		if (m.grown && m.feature == kCentroid) {
+			moved = m.square_b;
+			break;
+		}
+	assert_true(moved >= 0);
+	Square &q = shifted.dets[1].squares[size_t(moved)];
+	cv::Matx33d R = cams[1].R * cams[0].R.t();
+	cv::Vec3d t = cams[1].T - R * cams[0].T;
+	cv::Matx33d tx(0, -t[2], t[1], t[2], 0, -t[0], -t[1], t[0], 0);
+	const cv::Matx33d F = cams[1].K.inv().t() * tx * R * cams[0].K.inv();
+	const Square &qa = s.dets[0].squares[size_t(std::find_if(after.matches.begin(), after.matches.end(),
+							   [&](const PointMatch &m) { return m.square_b == moved; })
+							  ->square_a)];
+	const cv::Vec3d line = F * cv::Vec3d(qa.centroid.x, qa.centroid.y, 1);
+	const cv::Point2d along = cv::Point2d(-line[1], line[0]) * (1.0 / std::hypot(line[0], line[1]));
+	q.centroid += 20.0 * along; // about 4 mm off the surface at this baseline
+	q.has_corners = false;
+	PairMatches pruned;
+	assert_true(match_pair(shifted.dets[0], shifted.dets[1], cams[0], cams[1], p, MatchParams{}, &pruned).ok());
+	std::printf("a square moved 20 px along its epipolar line: %d pruned\n", pruned.pruned);
+	for (const PointMatch &m : pruned.matches)
+		assert_int_not_equal(m.square_b, moved);
+	assert_int_equal(check(shifted, pruned).wrong, 0);
 }
 
 int main(void)
