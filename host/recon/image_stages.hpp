@@ -215,7 +215,7 @@ struct MatchParams {
 	/// squares of camera a within this many grid pitches (at least this many of them), widened
 	/// by this margin.
 	bool guide = true;
-	int guide_rounds = 2;
+	int guide_rounds = 4;
 	double guide_radius_pitches = 2.5;
 	int guide_min_around = 3;
 	double guide_depth_margin_mm = 8;

@@ -321,15 +321,14 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 				if (ok[o] && pm->matches[o].square_a != x.square_a)
 					nearest.emplace_back(cv::norm(pts[o] - pts[m]), o);
 			const size_t k = size_t(params.surface_points);
-			if (nearest.size() < k)
-				continue;
-			std::partial_sort(nearest.begin(), nearest.begin() + long(k), nearest.end());
+			// Alone (fewer than half its neighbourhood within reach): nothing vouches for it.
 			hood.clear();
-			for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
-				hood.push_back(pts[nearest[i].second]);
-			if (hood.size() < k / 2)
-				continue; // alone: nothing to judge it by
-			if (quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
+			if (nearest.size() >= k) {
+				std::partial_sort(nearest.begin(), nearest.begin() + long(k), nearest.end());
+				for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
+					hood.push_back(pts[nearest[i].second]);
+			}
+			if (hood.size() < k / 2 || quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
 				drop_square_a[size_t(x.square_a)] = 1;
 		}
 		int squares = 0;

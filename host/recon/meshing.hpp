@@ -13,7 +13,7 @@
 namespace facescan::recon {
 
 struct MeshingParams {
-	double max_edge_factor = 3.5;  // drop a triangle with an edge > factor * median edge (3-D)
+	double max_edge_factor = 4.5;  // drop a triangle with an edge > factor * median edge (3-D)
 	double max_grazing_deg = 78;   // drop it when every camera sees it more obliquely than this
 };
 
