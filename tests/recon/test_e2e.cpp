@@ -38,15 +38,7 @@ static void test_default_scene(void **)
 	for (const cv::Vec3f &v : truth.head.vertices)
 		gt.positions.emplace_back(v[0], v[1], v[2]);
 	gt.triangles = truth.head.triangles;
-	std::vector<CameraModel> projectors;
-	for (const sim::SimProjector &p : rig.projectors) {
-		CameraModel m;
-		m.K = p.K;
-		m.R = p.R;
-		m.T = p.T;
-		m.size = p.size;
-		projectors.push_back(m);
-	}
+	const std::vector<CameraModel> projectors = sim::projector_models(rig);
 	eval::EvalResult r;
 	assert_true(eval::evaluate(mesh, gt, set.calibration.cameras, projectors, eval::EvalParams(), &r).ok());
 	int grown = 0;

@@ -101,15 +101,7 @@ int evaluate_main(int argc, char **argv)
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
 		return 1;
 	}
-	std::vector<CameraModel> projectors;
-	for (const sim::SimProjector &p : rig.projectors) {
-		CameraModel m;
-		m.K = p.K;
-		m.R = p.R;
-		m.T = p.T;
-		m.size = p.size;
-		projectors.push_back(m);
-	}
+	const std::vector<CameraModel> projectors = sim::projector_models(rig);
 	eval::EvalResult r;
 	s = eval::evaluate(mesh, truth, cal.cameras, projectors, params, &r);
 	if (!s.ok()) {

@@ -407,4 +407,18 @@ Calibration rig_calibration(const Rig &rig)
 	return cal;
 }
 
+std::vector<CameraModel> projector_models(const Rig &rig)
+{
+	std::vector<CameraModel> out;
+	for (const SimProjector &p : rig.projectors) {
+		CameraModel m;
+		m.K = p.K;
+		m.R = p.R;
+		m.T = p.T;
+		m.size = p.size;
+		out.push_back(m);
+	}
+	return out;
+}
+
 } // namespace facescan::sim

@@ -113,6 +113,9 @@ cv::Vec3d orbit_position(const cv::Vec3d &target, double azimuth_deg, double ele
 /// The calibration a capture set records for this rig.
 Calibration rig_calibration(const Rig &rig);
 
+/// The rig's projectors as pinhole models (no distortion), for the evaluation's "lit" test.
+std::vector<CameraModel> projector_models(const Rig &rig);
+
 // ---- geometry --------------------------------------------------------------------------------
 
 /// A triangle mesh. Optional per-vertex arrays are either empty or vertices.size() long.
