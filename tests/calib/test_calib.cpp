@@ -11,6 +11,7 @@
 #include "sim/sim.hpp"
 
 #include "../cmocka.hpp"
+#include "../simulated_scan.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core/utility.hpp>
@@ -452,20 +453,8 @@ static void test_recon_with_recovered_calibration(void **)
 	assert_true(calib::calibrate_rig(fx->views, sizes, calib::CalibParams(), &got, &rep).ok());
 
 	const sim::Rig rig = sim::default_rig();
-	sim::Scene scene;
-	assert_true(sim::scene_by_name("default", &scene).ok());
-	scene.head.shape = sim::random_head_shape(7); // not a head the other tests use
-	Pattern pattern;
-	assert_true(default_pattern(SlideSpec(), &pattern).ok());
-	CaptureSet set;
-	sim::SimTruth truth;
-	sim::SimOptions options;
-	options.texture_frames = false;
-	assert_true(sim::simulate(rig, scene, pattern, 7, &set, &truth, options).ok());
-	recon::Mesh gt;
-	for (const cv::Vec3f &v : truth.head.vertices)
-		gt.positions.emplace_back(v[0], v[1], v[2]);
-	gt.triangles = truth.head.triangles;
+	testing::SimulatedScan scan; // a head no other test uses
+	assert_true(testing::simulate_scan(rig, sim::random_head_shape(7), 7, &scan).ok());
 	const std::vector<CameraModel> projectors = sim::projector_models(rig);
 
 	struct Run {
@@ -473,12 +462,12 @@ static void test_recon_with_recovered_calibration(void **)
 		eval::EvalResult r;
 	} runs[2] = {{"true calibration", {}}, {"recovered calibration", {}}};
 	for (int k = 0; k < 2; k++) {
-		CaptureSet s = set;
+		CaptureSet s = scan.set;
 		if (k == 1)
 			s.calibration = got;
 		recon::Mesh mesh;
 		recon::ReconReport report;
-		const Status st = recon::reconstruct(s, pattern, recon::ReconParams(), &mesh, &report);
+		const Status st = recon::reconstruct(s, scan.pattern, recon::ReconParams(), &mesh, &report);
 		if (!st.ok())
 			std::printf("  reconstruct: %s\n", st.message().c_str());
 		assert_true(st.ok());
@@ -489,7 +478,8 @@ static void test_recon_with_recovered_calibration(void **)
 				p = cv::Point3f(float(w[0]), float(w[1]), float(w[2]));
 			}
 		}
-		assert_true(eval::evaluate(mesh, gt, fx->truth.cameras, projectors, eval::EvalParams(), &runs[k].r).ok());
+		assert_true(eval::evaluate(mesh, scan.truth, fx->truth.cameras, projectors, eval::EvalParams(),
+					   &runs[k].r).ok());
 		std::printf("  %s: %d vertices, RMS %.3f mm, median %.3f, p95 %.3f, completeness %.1f %%\n",
 			    runs[k].name, runs[k].r.vertices, runs[k].r.rms_mm, runs[k].r.median_mm, runs[k].r.p95_mm,
 			    100 * runs[k].r.completeness);

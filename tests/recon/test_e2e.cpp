@@ -6,6 +6,7 @@
 #include "sim/sim.hpp"
 
 #include "cmocka.hpp"
+#include "simulated_scan.hpp"
 
 #include <cstdio>
 
@@ -14,16 +15,10 @@ using namespace facescan;
 static void test_default_scene(void **)
 {
 	const sim::Rig rig = sim::default_rig();
-	sim::Scene scene;
-	assert_true(sim::scene_by_name("default", &scene).ok());
-	Pattern pattern;
-	assert_true(default_pattern(SlideSpec(), &pattern).ok());
-	CaptureSet set;
-	sim::SimTruth truth;
-	sim::SimOptions options;
-	options.texture_frames = false;
-	const Status ss = sim::simulate(rig, scene, pattern, 1, &set, &truth, options);
-	assert_true(ss.ok());
+	testing::SimulatedScan scan;
+	assert_true(testing::simulate_scan(rig, sim::HeadShape(), 1, &scan).ok()); // the canonical head
+	const CaptureSet &set = scan.set;
+	const Pattern &pattern = scan.pattern;
 
 	recon::Mesh mesh;
 	recon::ReconReport report;
@@ -34,13 +29,9 @@ static void test_default_scene(void **)
 	assert_true(report.texture.vertex_colours); // no texture frames: the colour fallback
 	assert_int_equal(mesh.colours.size(), mesh.positions.size());
 
-	recon::Mesh gt;
-	for (const cv::Vec3f &v : truth.head.vertices)
-		gt.positions.emplace_back(v[0], v[1], v[2]);
-	gt.triangles = truth.head.triangles;
 	const std::vector<CameraModel> projectors = sim::projector_models(rig);
 	eval::EvalResult r;
-	assert_true(eval::evaluate(mesh, gt, set.calibration.cameras, projectors, eval::EvalParams(), &r).ok());
+	assert_true(eval::evaluate(mesh, scan.truth, set.calibration.cameras, projectors, eval::EvalParams(), &r).ok());
 	int grown = 0;
 	for (const recon::PairReport &pr : report.pairs)
 		grown += pr.grown;
