@@ -219,8 +219,9 @@ struct MatchParams {
 	double guide_radius_pitches = 2.5;
 	int guide_min_around = 3;
 	double guide_depth_margin_mm = 8;
-	/// A grown or guided square's centroid must lie within this distance of the quadric fitted to
-	/// its `surface_points` nearest matched points of other squares within `surface_radius_mm`.
+	/// A grown, guided or centroid-only square's centroid must lie within this distance of the
+	/// quadric fitted to its `surface_points` nearest matched points of other squares within
+	/// `surface_radius_mm` (at least half of them must be that near; below 6, a plane is fitted).
 	double max_surface_residual_mm = 2.5;
 	int surface_points = 10;
 	double surface_radius_mm = 20;
@@ -230,7 +231,10 @@ struct MatchParams {
 /// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth,
 /// and when the connected grid parts the two squares belong to agree as a whole (the same copy of
 /// the slide: all three projectors throw it). A square with several such candidates is rejected
-/// (rejected_ambiguous), one with none counts in rejected_epipolar.
+/// (rejected_ambiguous), one with none counts in rejected_epipolar. Then the squares the code did
+/// not match are grown along both grids and guided along their epipolar lines, and every match
+/// not checked by its corners is pruned when it lies off its neighbours' surface (match.cpp:
+/// stages 4b-4d; counts in grown, guided, pruned).
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
 		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
 		  PairMatches *ret);

@@ -254,12 +254,12 @@ private:
 };
 
 // Distance from p to the quadric height field z = f(x, y) fitted, over the plane of best fit, to
-// `points` (a nose tip is curved within a square or two, so a plane would not do). -1 when the
-// fit is degenerate.
+// `points` (a nose tip is curved within a square or two, so a plane would not do); to that plane
+// when there are fewer than the 6 points a quadric needs. -1 with fewer than 3 points.
 double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p)
 {
 	const int k = int(points.size());
-	if (k < 6)
+	if (k < 3)
 		return -1;
 	cv::Vec3d mean(0, 0, 0);
 	for (const cv::Vec3d &q : points)
@@ -271,6 +271,8 @@ double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p
 	cv::Mat values, vectors;
 	cv::eigen(cv::Mat(cov), values, vectors); // descending eigenvalues: the normal is the last row
 	const cv::Vec3d u(vectors.ptr<double>(0)), v(vectors.ptr<double>(1)), n(vectors.ptr<double>(2));
+	if (k < 6)
+		return std::fabs((p - mean).dot(n));
 	cv::Mat A(k, 6, CV_64F), h(k, 1, CV_64F), c;
 	for (int i = 0; i < k; i++) {
 		const cv::Vec3d d = points[size_t(i)] - mean;
@@ -328,7 +330,8 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 				for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
 					hood.push_back(pts[nearest[i].second]);
 			}
-			if (hood.size() < k / 2 || quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
+			if (hood.size() < std::max<size_t>(3, k / 2) ||
+			    quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
 				drop_square_a[size_t(x.square_a)] = 1;
 		}
 		int squares = 0;
