@@ -7,6 +7,7 @@
 #include "recon/image_stages.hpp"
 
 #include <algorithm>
+#include <array>
 
 namespace facescan::recon {
 
@@ -244,51 +245,69 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 	dets->detected = int(n);
 	dets->decoded = dets->corrected = dets->rejected = 0;
 	std::vector<int> local(n, -1);
-	for (const std::vector<int> &mem : members) {
-		for (size_t k = 0; k < mem.size(); k++)
-			local[size_t(mem[k])] = int(k);
-		// The slide may appear rotated by a quarter turn in the image (a projector rolled 90°,
-		// a camera on its side): try the four, keep the one that decodes the most squares.
-		Decoded best;
-		std::vector<Square> best_sub;
-		const int rotations = params.any_rotation ? 4 : 1;
-		for (int rot = 0; rot < rotations; rot++) {
-			std::vector<Square> sub;
-			sub.reserve(mem.size());
-			for (int i : mem) {
-				Square s = sq[size_t(i)];
-				// Slide direction d appears as image direction d turned `rot` steps clockwise.
-				for (int d = 0; d < 4; d++) {
-					int img_dir = cw[(cw_pos[d] + rot) % 4];
-					int j = sq[size_t(i)].neighbours[size_t(img_dir)];
-					// A one-way link can point into another component (visited earlier):
-					// its local index belongs to that component's sub-vector.
-					s.neighbours[size_t(d)] =
-						j >= 0 && comp[size_t(j)] == comp[size_t(i)] ? local[size_t(j)] : -1;
-				}
-				// Slide corner k (TL, TR, BR, BL: clockwise) is image corner k + rot.
-				for (int k = 0; k < 4; k++)
-					s.corners[size_t(k)] = sq[size_t(i)].corners[size_t((k + rot) % 4)];
-				sub.push_back(s);
+	// Component `mem` (its squares' local indices set) rewritten into the slide's sense for a
+	// slide that appears turned `rot` quarter turns clockwise in the image.
+	auto oriented = [&](const std::vector<int> &mem, int rot) {
+		std::vector<Square> sub;
+		sub.reserve(mem.size());
+		for (int i : mem) {
+			Square s = sq[size_t(i)];
+			// Slide direction d appears as image direction d turned `rot` steps clockwise.
+			for (int d = 0; d < 4; d++) {
+				int img_dir = cw[(cw_pos[d] + rot) % 4];
+				int j = sq[size_t(i)].neighbours[size_t(img_dir)];
+				// A one-way link can point into another component: its local index
+				// belongs to that component's sub-vector.
+				s.neighbours[size_t(d)] = j >= 0 && comp[size_t(j)] == comp[size_t(i)] ? local[size_t(j)] : -1;
 			}
-			Decoded d = decode_core(sub, m, table, params);
-			if (rot == 0 || d.decoded > best.decoded) {
-				best = std::move(d);
-				best_sub = std::move(sub);
+			// Slide corner k (TL, TR, BR, BL: clockwise) is image corner k + rot.
+			for (int k = 0; k < 4; k++)
+				s.corners[size_t(k)] = sq[size_t(i)].corners[size_t((k + rot) % 4)];
+			sub.push_back(s);
+		}
+		return sub;
+	};
+	// The slide may appear rotated by a quarter turn in the image (a projector rolled 90°, a
+	// camera on its side): per component, keep the rotation that decodes the most squares.
+	const int rotations = params.any_rotation ? 4 : 1;
+	std::vector<int> best_rot(members.size(), 0);
+	std::vector<Decoded> best(members.size());
+	std::array<int, 4> decoded_by_rot{};
+	for (size_t c = 0; c < members.size(); c++) {
+		for (size_t k = 0; k < members[c].size(); k++)
+			local[size_t(members[c][k])] = int(k);
+		for (int rot = 0; rot < rotations; rot++) {
+			Decoded d = decode_core(oriented(members[c], rot), m, table, params);
+			if (rot == 0 || d.decoded > best[c].decoded) {
+				best[c] = std::move(d);
+				best_rot[c] = rot;
 			}
 		}
+		decoded_by_rot[size_t(best_rot[c])] += best[c].decoded;
+	}
+	// A component with no decoded square (a nose flank, a projector seam) takes the rotation
+	// most of the camera's squares decoded in: the projectors and cameras are rigid, so its
+	// corners and neighbours are then in the same order as the other camera's, which growing
+	// and guided matching (match.cpp) compare side by side.
+	const int usual_rot = int(std::max_element(decoded_by_rot.begin(), decoded_by_rot.end()) - decoded_by_rot.begin());
+	for (size_t c = 0; c < members.size(); c++) {
+		const std::vector<int> &mem = members[c];
+		for (size_t k = 0; k < mem.size(); k++)
+			local[size_t(mem[k])] = int(k);
+		const int rot = best[c].decoded > 0 ? best_rot[c] : usual_rot;
+		const std::vector<Square> sub = oriented(mem, rot);
 		for (size_t k = 0; k < mem.size(); k++) {
 			Square &s = sq[size_t(mem[k])];
-			const Square &b = best_sub[k];
+			const Square &b = sub[k];
 			s.corners = b.corners;
 			for (int d = 0; d < 4; d++)
 				s.neighbours[size_t(d)] = b.neighbours[size_t(d)] >= 0 ? mem[size_t(b.neighbours[size_t(d)])] : -1;
-			s.cell = best.cell[k];
-			s.corrected = s.cell >= 0 && best.corrected[k];
+			s.cell = best[c].cell[k];
+			s.corrected = s.cell >= 0 && best[c].corrected[k];
 			if (s.cell >= 0) {
 				dets->decoded++;
 				dets->corrected += s.corrected;
-			} else if (best.touched[k]) {
+			} else if (best[c].touched[k]) {
 				dets->rejected++;
 			}
 		}

@@ -349,6 +349,57 @@ static void decoding_corrects_injected_errors_and_gaps(void **)
 	assert_true(lone.rejected >= 1);
 }
 
+// The slide turned a quarter turn in the image, with a 3 x 3 patch that cannot be decoded (no
+// letters, cut off from the grid: a nose flank). The patch must come out in the slide's sense like
+// the rest of the camera, or the other camera's view of it (decoded there) would be compared
+// corner by corner and side by side in another order, and never matched.
+static void undecodable_part_takes_the_cameras_rotation(void **)
+{
+	Pattern p = the_pattern();
+	const CodeMatrix &m = p.matrix;
+	CameraDetections slide = grid_from_matrix(p);
+	auto in_patch = [&](size_t i) {
+		const int r = int(i) / m.cols(), c = int(i) % m.cols();
+		return r >= 5 && r <= 7 && c >= 7 && c <= 9;
+	};
+	for (size_t i = 0; i < slide.squares.size(); i++) {
+		Square &s = slide.squares[i];
+		for (int k = 0; k < 4; k++) { // TL, TR, BR, BL around the centre, slide sense
+			const double dx = (k == 1 || k == 2) ? 10 : -10, dy = k >= 2 ? 10 : -10;
+			s.corners[size_t(k)] = s.centroid + cv::Point2d(dx, dy);
+		}
+		s.has_corners = true;
+		if (in_patch(i))
+			s.letter = -1;
+		for (int &j : s.neighbours)
+			if (j >= 0 && in_patch(size_t(j)) != in_patch(i))
+				j = -1;
+	}
+	// As the camera sees it, turned a quarter turn clockwise: slide direction up (0), left (1),
+	// right (2), down (3) appear as image right, up, down, left; slide corner k as image corner k + 1.
+	const int image_dir[4] = {2, 0, 3, 1};
+	CameraDetections seen = slide;
+	for (size_t i = 0; i < seen.squares.size(); i++) {
+		for (int d = 0; d < 4; d++)
+			seen.squares[i].neighbours[size_t(image_dir[d])] = slide.squares[i].neighbours[size_t(d)];
+		for (int k = 0; k < 4; k++)
+			seen.squares[i].corners[size_t((k + 1) % 4)] = slide.squares[i].corners[size_t(k)];
+	}
+	decode_cells(p, DecodeParams{}, &seen);
+	int decoded = 0;
+	for (size_t i = 0; i < seen.squares.size(); i++) {
+		decoded += seen.squares[i].cell == int(i);
+		// Every square, decoded or not, is back in the slide's sense.
+		for (int d = 0; d < 4; d++)
+			assert_int_equal(seen.squares[i].neighbours[size_t(d)], slide.squares[i].neighbours[size_t(d)]);
+		for (int k = 0; k < 4; k++)
+			assert_true(cv::norm(seen.squares[i].corners[size_t(k)] - slide.squares[i].corners[size_t(k)]) < 1e-9);
+	}
+	const int patch = 9;
+	assert_true(decoded >= int(0.9 * double(seen.squares.size() - patch)));
+	assert_int_equal(seen.squares[size_t(6 * m.cols() + 8)].cell, -1);
+}
+
 static void shadow_cut_squares_are_marked_irregular(void **)
 {
 	Pattern p = the_pattern();
@@ -424,6 +475,7 @@ int main(void)
 		cmocka_unit_test(letters_are_classified_under_a_skin_tint),
 		cmocka_unit_test(grid_links_follow_the_slide),
 		cmocka_unit_test(decoding_corrects_injected_errors_and_gaps),
+		cmocka_unit_test(undecodable_part_takes_the_cameras_rotation),
 		cmocka_unit_test(shadow_cut_squares_are_marked_irregular),
 		cmocka_unit_test(detection_decodes_a_rendered_view),
 	};
