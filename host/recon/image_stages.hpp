@@ -219,6 +219,13 @@ struct MatchParams {
 	double guide_radius_pitches = 2.5;
 	int guide_min_around = 3;
 	double guide_depth_margin_mm = 8;
+	/// Seeded growth into parts no code word or matched neighbour reaches (see match.cpp): the
+	/// seed's trial growth must pair this many squares whose letters agree, twice as many as any
+	/// other candidate's, at a depth within the pair's matched range widened by the margin.
+	/// A seed is grown from even when `grow` is off: it is only as good as its growth.
+	bool seed = true;
+	int seed_min_support = 5;
+	double seed_depth_margin_mm = 20;
 	/// A grown, guided or centroid-only square's centroid must lie within this distance of the
 	/// quadric fitted to its `surface_points` nearest matched points of other squares within
 	/// `surface_radius_mm` (at least half of them must be that near; below 6, a plane is fitted).
@@ -232,9 +239,9 @@ struct MatchParams {
 /// and when the connected grid parts the two squares belong to agree as a whole (the same copy of
 /// the slide: all three projectors throw it). A square with several such candidates is rejected
 /// (rejected_ambiguous), one with none counts in rejected_epipolar. Then the squares the code did
-/// not match are grown along both grids and guided along their epipolar lines, and every match
-/// not checked by its corners is pruned when it lies off its neighbours' surface (match.cpp:
-/// stages 4b-4d; counts in grown, guided, pruned).
+/// not match are grown along both grids, guided along their epipolar lines and, where nothing
+/// reaches, seeded by trial growth; every match not checked by its corners is pruned when it lies
+/// off its neighbours' surface (match.cpp: stages 4b-4e; counts in grown, guided, seeded, pruned).
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
 		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
 		  PairMatches *ret);

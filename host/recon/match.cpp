@@ -102,7 +102,7 @@ std::vector<int> grid_parts(const CameraDetections &d, int cols)
 	return part;
 }
 
-// Matching the squares the code did not match (stages 4b and 4c). The code only serves to find
+// Matching the squares the code did not match (stages 4b-4d). The code only serves to find
 // where a square is in the other view; a square whose code word could not be read (a missing
 // neighbour, a dim or mixed colour in a projector seam, a slide border cell) or whose grid links
 // are broken (around a nostril, a lip, an eyelid) is still the same surface patch in both views,
@@ -112,8 +112,10 @@ std::vector<int> grid_parts(const CameraDetections &d, int cols)
 //    every neighbour already matched agrees;
 //  - guiding: the matched squares around a square of camera a bound its depth, and along its
 //    epipolar line in camera b exactly one unmatched square may lie in that range (and it must
-//    not be the only candidate of another square of a).
-// Either way the pair must pass the same tests (compatible()): letters and cells do not
+//    not be the only candidate of another square of a);
+//  - seeding: a part of the grid that neither reaches (cut off, no complete word) is entered
+//    from the one candidate pair whose trial growth pairs many squares with agreeing letters.
+// Every way the pair must pass the same tests (compatible()): letters and cells do not
 // contradict, the epipolar line and a plausible depth. Once all are matched, prune_off_surface()
 // drops those that lie off the surface their neighbours describe.
 template <typename AddMatch>
@@ -204,8 +206,96 @@ public:
 		return out;
 	}
 
+	/// Seeds growth in parts of the grid that neither a code word nor a matched neighbour reaches
+	/// (a band of neck under the chin, two rows tall, where no word is complete): a candidate
+	/// pair of squares is tried by growing from it along both grids without committing; the
+	/// letters it would pair must agree on every square where both are known, and only a seed
+	/// whose growth pairs at least `seed_min_support` such squares, far more than any other
+	/// candidate for the same square, is kept (a wrong candidate on the epipolar line pairs
+	/// letters at random, one in three). Depth stays within the range of the pair's matched
+	/// squares, widened by `seed_depth_margin_mm`. Each seed is grown from at once (adding to
+	/// *ret_grown); returns the number of seeds.
+	int seed(int *ret_grown)
+	{
+		double lo = 1e300, hi = -1e300;
+		for (size_t i = 0; i < a_.squares.size(); i++) {
+			const int j = match_of_a_[i];
+			double z = 0;
+			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z)) {
+				lo = std::min(lo, z);
+				hi = std::max(hi, z);
+			}
+		}
+		if (lo > hi)
+			return 0;
+		lo -= params_.seed_depth_margin_mm;
+		hi += params_.seed_depth_margin_mm;
+		struct Seed {
+			int support;
+			size_t i;
+			int j;
+		};
+		std::vector<Seed> seeds;
+		for (size_t i = 0; i < a_.squares.size(); i++) {
+			if (match_of_a_[i] >= 0 || a_.squares[i].letter < 0)
+				continue;
+			int best = 0, second = 0, best_j = -1;
+			for (size_t j = 0; j < b_.squares.size(); j++) {
+				double z = 0;
+				if (match_of_b_[j] >= 0 || b_.squares[j].letter < 0 || !compatible(i, int(j), &z) ||
+				    z < lo || z > hi)
+					continue;
+				const int support = dry_grow(i, int(j));
+				if (support > best) {
+					second = best;
+					best = support;
+					best_j = int(j);
+				} else {
+					second = std::max(second, support);
+				}
+			}
+			if (best >= params_.seed_min_support && second * 2 < best)
+				seeds.push_back({best, i, best_j});
+		}
+		std::sort(seeds.begin(), seeds.end(), [](const Seed &x, const Seed &y) { return x.support > y.support; });
+		int planted = 0;
+		for (const Seed &sd : seeds)
+			if (match_of_a_[sd.i] < 0 && match_of_b_[size_t(sd.j)] < 0 && accept(sd.i, sd.j)) {
+				planted++;
+				*ret_grown += grow({sd.i});
+			}
+		return planted;
+	}
+
 private:
 	bool accept(size_t i, int j) { return add_(i, j, true); }
+
+	// How many squares with a known letter in both views growing from the pair (i, j) would
+	// match, without matching them.
+	int dry_grow(size_t i, int j) const
+	{
+		std::unordered_map<int, int> pair_of_a{{int(i), j}};
+		std::unordered_map<int, int> pair_of_b{{j, int(i)}};
+		std::vector<std::pair<int, int>> queue{{int(i), j}};
+		int support = 0;
+		while (!queue.empty()) {
+			const auto [p, q] = queue.back();
+			queue.pop_back();
+			support++;
+			for (int d = 0; d < 4; d++) {
+				const int p2 = a_.squares[size_t(p)].neighbours[size_t(d)];
+				const int q2 = b_.squares[size_t(q)].neighbours[size_t(d)];
+				if (p2 < 0 || q2 < 0 || match_of_a_[size_t(p2)] >= 0 || match_of_b_[size_t(q2)] >= 0 ||
+				    pair_of_a.count(p2) || pair_of_b.count(q2) || a_.squares[size_t(p2)].letter < 0 ||
+				    b_.squares[size_t(q2)].letter < 0 || !compatible(size_t(p2), q2, nullptr))
+					continue;
+				pair_of_a.emplace(p2, q2);
+				pair_of_b.emplace(q2, p2);
+				queue.emplace_back(p2, q2);
+			}
+		}
+		return support;
+	}
 
 	bool near(size_t i, size_t k) const
 	{
@@ -490,6 +580,8 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		if (params.grow)
 			out.grown += extend.grow(found);
 	}
+	if (params.seed)
+		out.seeded = extend.seed(&out.grown);
 	out.pruned = prune_off_surface(g, na, nb, a.squares.size(), params, &out);
 	*ret = std::move(out);
 	return {};

@@ -135,6 +135,7 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		pr.rejected_ambiguous = matches[p].rejected_ambiguous;
 		pr.grown = matches[p].grown;
 		pr.guided = matches[p].guided;
+		pr.seeded = matches[p].seeded;
 		pr.pruned = matches[p].pruned;
 		report.pairs.push_back(pr);
 	}
@@ -225,6 +226,7 @@ std::string report_json(const ReconReport &r)
 				 {"rejected_ambiguous", p.rejected_ambiguous},
 				 {"grown", p.grown},
 				 {"guided", p.guided},
+				 {"seeded", p.seeded},
 				 {"pruned", p.pruned},
 				 {"triangulated", p.triangulate.kept},
 				 {"dropped_reprojection", p.triangulate.dropped_reprojection},

@@ -53,6 +53,7 @@ struct PairReport {
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
 	int grown = 0;	// squares matched by growing along the grid
 	int guided = 0; // ... by guided search along the epipolar line
+	int seeded = 0; // ... seeds of growth into parts of the grid nothing else reached
 	int pruned = 0; // grown, guided or centroid-only squares dropped as off their neighbours' surface
 	TriangulateStats triangulate;
 	MeshingStats meshing;

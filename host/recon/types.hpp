@@ -58,6 +58,7 @@ struct PairMatches {
 	int rejected_epipolar = 0, rejected_ambiguous = 0;
 	int grown = 0; // squares matched by growing along the grid (no usable code word of their own)
 	int guided = 0; // squares matched along the epipolar line within their neighbours' depth
+	int seeded = 0; // squares that seeded growth into a part of the grid nothing else reached
 	int pruned = 0; // grown, guided or centroid-only squares removed as off their neighbours' surface
 };
 

@@ -239,8 +239,8 @@ static void grows_to_squares_without_code(void **)
 			d.squares[i].cell = -1;
 		}
 	MatchParams code_only, grow_only;
-	code_only.grow = code_only.guide = false;
-	grow_only.guide = false;
+	code_only.grow = code_only.guide = code_only.seed = false;
+	grow_only.guide = grow_only.seed = false;
 	PairMatches before, grown, after;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, code_only, &before).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, grow_only, &grown).ok());
@@ -295,11 +295,69 @@ static void grows_to_squares_without_code(void **)
 	assert_int_equal(check(shifted, pruned).wrong, 0);
 }
 
+// A band of the grid no code word and no link reaches (the neck under the chin: two rows, no
+// complete word, cut from the face above by the jaw's shadow) is matched by seeding growth from
+// the one candidate pair whose trial growth pairs agreeing letters — and never to the wrong square.
+static void seeds_growth_where_no_code_reaches(void **)
+{
+	Pattern p;
+	assert_true(default_pattern(SlideSpec{}, &p).ok());
+	const cv::Vec3d target(0, -10, 40);
+	std::vector<CameraModel> cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
+	const double lift[3] = {-6, 0, 7};
+	Scene s = make_scene(p, cams, lift, 0.05, 7);
+	const int cols = p.matrix.cols(), first_row = p.matrix.rows() - 3;
+	int band = 0;
+	for (size_t c = 0; c < s.dets.size(); c++) {
+		std::vector<Square> &sq = s.dets[c].squares;
+		auto in_band = [&](size_t i) { return s.cell_of[c][i] / cols >= first_row; };
+		for (size_t i = 0; i < sq.size(); i++) {
+			if (!in_band(i))
+				continue;
+			sq[i].cell = -1;
+			band += c == 0;
+			for (int &j : sq[i].neighbours)
+				if (j >= 0 && !in_band(size_t(j))) {
+					for (int &back : sq[size_t(j)].neighbours)
+						if (back == int(i))
+							back = -1;
+					j = -1;
+				}
+		}
+	}
+	// Guided matching would reach this band from the squares beside it in the image (its depth
+	// follows theirs here); off, so that only seeding can.
+	MatchParams seeding, no_seed;
+	seeding.guide = no_seed.guide = no_seed.seed = false;
+	PairMatches without, with;
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, no_seed, &without).ok());
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, seeding, &with).ok());
+	const Outcome ow = check(s, without), os = check(s, with);
+	std::printf("band of %d squares without code or links: %d square matches without seeding, %d "
+		    "with (%d seeds), %d wrong\n",
+		    band, ow.centroids, os.centroids, with.seeded, os.wrong);
+	assert_int_equal(without.seeded, 0);
+	assert_true(with.seeded > 0);
+	assert_int_equal(os.wrong, 0);
+	assert_true(os.centroids >= ow.centroids + band / 2);
+
+	// The same band with its letters unread has nothing to check a seed by: nothing is seeded.
+	for (CameraDetections &d : s.dets)
+		for (Square &q : d.squares)
+			if (q.cell < 0)
+				q.letter = -1;
+	PairMatches blind;
+	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, seeding, &blind).ok());
+	assert_int_equal(blind.seeded, 0);
+	assert_int_equal(check(s, blind).wrong, 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(matches_pair_the_same_copy_only),
 		cmocka_unit_test(grows_to_squares_without_code),
+		cmocka_unit_test(seeds_growth_where_no_code_reaches),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
