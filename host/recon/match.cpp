@@ -317,10 +317,10 @@ private:
 	bool compatible(size_t i, int j, double *ret_depth) const
 	{
 		const Square &sa = a_.squares[i], &sb = b_.squares[size_t(j)];
-		// A square flagged irregular in both views is cut or bent in both; in one view only, it is
-		// usually bent over a curve (lip, nose) there, and its centroid still pins it.
-		if (sa.irregular && sb.irregular)
-			return false;
+		// Irregular squares (cut, bent, or two run together in a projector seam) are compared by
+		// centroid only: a cut that lies on the surface (a projector's frame edge, its shadow)
+		// looks the same from both cameras and so does its centroid; one that depends on the view
+		// (an occluding contour) moves the centroid, and prune_off_surface() drops it.
 		if ((sa.cell >= 0 && sb.cell >= 0 && sa.cell != sb.cell) ||
 		    (sa.letter >= 0 && sb.letter >= 0 && sa.letter != sb.letter))
 			return false;

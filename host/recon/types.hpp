@@ -29,8 +29,9 @@ struct Square {
 	int cell = -1;		// decoded matrix cell r*cols+c, -1 not decoded
 	bool corrected = false; // decoded after correcting a wrong or missing letter
 	/// Its shape disagrees with its grid neighbours' (cut by a shadow or an occluding edge, bent
-	/// over a lip): its corners are not surface points of the slide's square. Not matched by its code;
-	/// growing (match.cpp) may match its centroid when the other view sees it regular.
+	/// over a lip, two squares run together in a projector seam): its corners are not surface points
+	/// of the slide's square. Not matched by its code; growing and guided matching (match.cpp) may
+	/// match its centroid, which prune_off_surface checks against the surface around it.
 	bool irregular = false;
 	double area = 0;	// pixels
 };
