@@ -8,7 +8,7 @@ trap 'rm -rf "$out"' EXIT
 fail=0
 "$bin" simulate --scene turned --seed 3 --scale 0.2 --out "$out/set" --contact-sheet "$out/sheet.png" || {
 	echo "FAIL: simulate exited $?"; exit 1; }
-for f in calibration.yaml capture.json ground_truth.ply cam0.png cam1.png cam2.png cam3.png \
+for f in calibration.yaml capture.json ground_truth.ply ground_truth_projectors.yaml cam0.png cam1.png cam2.png cam3.png \
 	cam0_texture.png cam1_texture.png cam2_texture.png cam3_texture.png; do
 	[ -s "$out/set/$f" ] || { echo "FAIL: $f missing or empty"; fail=1; }
 done
@@ -18,6 +18,16 @@ grep -q 'cam3_K' "$out/set/calibration.yaml" || { echo "FAIL: calibration.yaml h
 grep -q '^cam3_size' "$out/set/calibration.yaml" && grep -A1 -E '^cam3_size' "$out/set/calibration.yaml" | grep -q 320 ||
 	{ echo "FAIL: cam3_size is not the scaled 320x240"; grep -A2 cam3_size "$out/set/calibration.yaml"; fail=1; }
 head -c 3 "$out/set/ground_truth.ply" | grep -q ply || { echo "FAIL: ground_truth.ply is not a PLY"; fail=1; }
+# The set records its projectors, so completeness counts the points this rig lit without being
+# told the rig: the same count as naming the rig file, not the built-in default rig's.
+rigs=tools/sim/rigs
+"$bin" simulate --config $rigs/landscape.yaml --seed 3 --scale 0.2 --no-texture --out "$out/land" >/dev/null || {
+	echo "FAIL: simulate --config landscape exited $?"; exit 1; }
+counted() { "$bin" evaluate "$out/land/ground_truth.ply" "$out/land" "$@" | sed -n 's/.* of \([0-9]*\) truth points.*/\1/p'; }
+recorded=$(counted) named=$(counted --rig $rigs/landscape.yaml) default=$(counted --rig $rigs/default.yaml)
+echo "truth points counted: recorded projectors $recorded, landscape rig named $named, default rig $default"
+[ -n "$recorded" ] && [ "$recorded" = "$named" ] && [ "$recorded" != "$default" ] ||
+	{ echo "FAIL: evaluate did not use the projectors recorded in the set"; fail=1; }
 # Errors: unknown scene → 2, unreadable rig file → 1.
 "$bin" simulate --scene nosuch --out "$out/x" 2>/dev/null; rc=$?
 [ $rc -eq 2 ] || { echo "FAIL: unknown scene exited $rc, want 2"; fail=1; }

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <getopt.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -24,7 +25,8 @@ static void evaluate_usage(FILE *out)
 		     "max, mm) and completeness: the fraction of true surface points seen by >= 2 cameras\n"
 		     "and lit by a projector that lie within 1 mm of the mesh.\n"
 		     "  --rig FILE       the simulator rig the set was rendered with (projector poses);\n"
-		     "                   default: the built-in default rig\n"
+		     "                   default: CAPTURE_DIR/ground_truth_projectors.yaml (written by\n"
+		     "                   facescan simulate), else the built-in default rig\n"
 		     "  --within MM      completeness distance (default 1 mm)\n"
 		     "  --json OUT.json  also write the numbers as JSON\n"
 		     "  --coverage OUT.ply  the truth mesh coloured by completeness: green covered,\n"
@@ -94,14 +96,24 @@ int evaluate_main(int argc, char **argv)
 	Calibration cal;
 	if (s.ok())
 		s = read_calibration(dir + "/calibration.yaml", &cal);
-	sim::Rig rig = sim::default_rig();
-	if (s.ok() && !rig_path.empty())
-		s = sim::load_rig(rig_path, &rig);
+	// Which points were lit: the projectors the set was rendered with (written beside the truth
+	// since the simulator records them), else the rig named, else the built-in default rig.
+	std::vector<CameraModel> projectors;
+	const std::string recorded = dir + "/ground_truth_projectors.yaml";
+	if (s.ok() && rig_path.empty() && access(recorded.c_str(), F_OK) == 0) {
+		Calibration lit;
+		s = read_calibration(recorded, &lit);
+		projectors = lit.cameras;
+	} else if (s.ok()) {
+		sim::Rig rig = sim::default_rig();
+		if (!rig_path.empty())
+			s = sim::load_rig(rig_path, &rig);
+		projectors = sim::projector_models(rig);
+	}
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
 		return 1;
 	}
-	const std::vector<CameraModel> projectors = sim::projector_models(rig);
 	eval::EvalResult r;
 	s = eval::evaluate(mesh, truth, cal.cameras, projectors, params, &r);
 	if (!s.ok()) {

@@ -242,6 +242,9 @@ Status render_views(const Rig &rig, const std::vector<Surface> &surfaces, const 
 struct SimTruth {
 	Mesh head;			// the head in world mm (as written to ground_truth.ply)
 	std::vector<ViewTruth> views;	// per camera, when SimOptions::truth_maps
+	/// The projectors as pinhole models (projector_models(rig)): which truth points were lit,
+	/// for scoring completeness without knowing the rig file the set was rendered with.
+	std::vector<CameraModel> projectors;
 	double render_seconds = 0;	// wall time of the render (for the CLI and the bench)
 };
 
@@ -260,7 +263,8 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 /// `tile_width` pixels wide, camera names written on the tiles. 8-bit BGR.
 cv::Mat contact_sheet(const CaptureSet &set, int tile_width);
 
-/// Writes the capture set plus ground_truth.ply (the head, world mm) into `dir`.
+/// Writes the capture set plus the ground truth into `dir`: ground_truth.ply (the head, world mm)
+/// and ground_truth_projectors.yaml (the projectors, in calibration.yaml's format).
 Status write_simulated_set(const std::string &dir, const CaptureSet &set, const SimTruth &truth);
 
 // ---- ray casting -------------------------------------------------------------------------------

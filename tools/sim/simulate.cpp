@@ -116,6 +116,7 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 		SimTruth t;
 		t.head = std::move(surfaces[0].mesh);
 		t.views = std::move(res.truth);
+		t.projectors = projector_models(rig);
 		t.render_seconds = secs;
 		*ret_truth = std::move(t);
 	}
@@ -127,7 +128,13 @@ Status write_simulated_set(const std::string &dir, const CaptureSet &set, const 
 	Status st = write_capture_set(dir, set);
 	if (!st.ok())
 		return st;
-	return write_ply(dir + "/ground_truth.ply", truth.head);
+	st = write_ply(dir + "/ground_truth.ply", truth.head);
+	if (!st.ok())
+		return st;
+	Calibration projectors;
+	projectors.cameras = truth.projectors;
+	projectors.id = "simulated projectors";
+	return write_calibration(dir + "/ground_truth_projectors.yaml", projectors);
 }
 
 } // namespace facescan::sim
