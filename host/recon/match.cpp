@@ -386,8 +386,9 @@ double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p
 // in one view. Judged after all matching, so the neighbourhood surrounds the square. Twice: a bad
 // square bends its neighbours' fits. Returns how many squares it removed.
 int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb,
-		     size_t squares_a, const MatchParams &params, PairMatches *pm)
+		     const CameraDetections &a, const CameraDetections &b, const MatchParams &params, PairMatches *pm)
 {
+	const size_t squares_a = a.squares.size();
 	int removed = 0;
 	for (int pass = 0; pass < 2; pass++) {
 		std::vector<cv::Vec3d> pts(pm->matches.size());
@@ -420,8 +421,12 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 				for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
 					hood.push_back(pts[nearest[i].second]);
 			}
+			// Corners in one view only: the other view's blob is cut or merged there, and its area
+			// centroid is not the slide square's centre, while the first view's is.
+			const bool one_sided = a.squares[size_t(x.square_a)].has_corners != b.squares[size_t(x.square_b)].has_corners;
+			const double limit = one_sided ? params.max_one_sided_residual_mm : params.max_surface_residual_mm;
 			if (hood.size() < std::max<size_t>(3, k / 2) ||
-			    quadric_residual(hood, pts[m]) > params.max_surface_residual_mm)
+			    quadric_residual(hood, pts[m]) > limit)
 				drop_square_a[size_t(x.square_a)] = 1;
 		}
 		int squares = 0;
@@ -582,7 +587,7 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 	}
 	if (params.seed)
 		out.seeded = extend.seed(&out.grown);
-	out.pruned = prune_off_surface(g, na, nb, a.squares.size(), params, &out);
+	out.pruned = prune_off_surface(g, na, nb, a, b, params, &out);
 	*ret = std::move(out);
 	return {};
 }

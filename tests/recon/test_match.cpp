@@ -310,6 +310,26 @@ static void grows_to_squares_without_code(void **)
 	for (const PointMatch &m : pruned.matches)
 		assert_int_not_equal(m.square_b, moved);
 	assert_int_equal(check(shifted, pruned).wrong, 0);
+
+	// Moved less (about 1.8 mm off the surface): kept when neither view has the square's corners
+	// (within the 2.5 mm any centroid-only square may be off), dropped when one view has them
+	// (its blob in the other view is cut: 1.5 mm).
+	const size_t partner = size_t(std::find_if(after.matches.begin(), after.matches.end(),
+						  [&](const PointMatch &m) { return m.square_b == moved; })
+					 ->square_a);
+	for (bool corners_in_a : {false, true}) {
+		Scene near = s;
+		near.dets[1].squares[size_t(moved)].centroid += 9.0 * along;
+		near.dets[1].squares[size_t(moved)].has_corners = false;
+		near.dets[0].squares[partner].has_corners = corners_in_a;
+		PairMatches pm;
+		assert_true(match_pair(near.dets[0], near.dets[1], cams[0], cams[1], p, MatchParams{}, &pm).ok());
+		const bool kept = std::any_of(pm.matches.begin(), pm.matches.end(),
+					      [&](const PointMatch &m) { return m.square_b == moved; });
+		std::printf("moved 9 px, corners in %s: %s\n", corners_in_a ? "one view" : "neither view",
+			    kept ? "kept" : "pruned");
+		assert_true(kept == !corners_in_a);
+	}
 }
 
 // A band of the grid no code word and no link reaches (the neck under the chin: two rows, no
