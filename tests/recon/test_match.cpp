@@ -136,14 +136,31 @@ static Outcome check(const Scene &s, const PairMatches &pm)
 	return o;
 }
 
+// Two cameras 40° apart, 550 mm from the cylinder, the three copies thrown from different
+// heights; 0.05 px of corner noise.
+struct Stereo {
+	Pattern p;
+	std::vector<CameraModel> cams;
+	Scene s;
+};
+
+static Stereo stereo_scene(uint64_t seed)
+{
+	Stereo st;
+	assert_true(default_pattern(SlideSpec{}, &st.p).ok());
+	const cv::Vec3d target(0, -10, 40);
+	st.cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
+	const double lift[3] = {-6, 0, 7}; // projectors at different heights
+	st.s = make_scene(st.p, st.cams, lift, 0.05, seed);
+	return st;
+}
+
 static void matches_pair_the_same_copy_only(void **)
 {
-	Pattern p;
-	assert_true(default_pattern(SlideSpec{}, &p).ok());
-	const cv::Vec3d target(0, -10, 40);
-	std::vector<CameraModel> cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
-	const double lift[3] = {-6, 0, 7}; // projectors at different heights
-	Scene s = make_scene(p, cams, lift, 0.05, 3);
+	Stereo st = stereo_scene(3);
+	const Pattern &p = st.p;
+	const std::vector<CameraModel> &cams = st.cams;
+	Scene &s = st.s;
 	PairMatches pm;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, MatchParams{}, &pm).ok());
 	Outcome o = check(s, pm);
@@ -200,12 +217,10 @@ static void matches_pair_the_same_copy_only(void **)
 // both grids from their decoded neighbours — and never to the wrong square.
 static void grows_to_squares_without_code(void **)
 {
-	Pattern p;
-	assert_true(default_pattern(SlideSpec{}, &p).ok());
-	const cv::Vec3d target(0, -10, 40);
-	std::vector<CameraModel> cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
-	const double lift[3] = {-6, 0, 7};
-	Scene s = make_scene(p, cams, lift, 0.05, 5);
+	Stereo st = stereo_scene(5);
+	const Pattern &p = st.p;
+	const std::vector<CameraModel> &cams = st.cams;
+	Scene &s = st.s;
 	cv::RNG rng(11);
 	int erased = 0, wrong_letter = 0;
 	for (CameraDetections &d : s.dets)
@@ -337,12 +352,10 @@ static void grows_to_squares_without_code(void **)
 // the one candidate pair whose trial growth pairs agreeing letters — and never to the wrong square.
 static void seeds_growth_where_no_code_reaches(void **)
 {
-	Pattern p;
-	assert_true(default_pattern(SlideSpec{}, &p).ok());
-	const cv::Vec3d target(0, -10, 40);
-	std::vector<CameraModel> cams = {camera_at(-20, target, 550), camera_at(20, target, 550)};
-	const double lift[3] = {-6, 0, 7};
-	Scene s = make_scene(p, cams, lift, 0.05, 7);
+	Stereo st = stereo_scene(7);
+	const Pattern &p = st.p;
+	const std::vector<CameraModel> &cams = st.cams;
+	Scene &s = st.s;
 	const int cols = p.matrix.cols(), first_row = p.matrix.rows() - 3;
 	int band = 0;
 	for (size_t c = 0; c < s.dets.size(); c++) {
