@@ -41,7 +41,7 @@ static void test_default_scene(void **)
 		    r.median_mm, r.p95_mm, 100 * r.completeness, r.truth_counted);
 	assert_true(r.rms_mm < 0.3);
 	assert_true(r.p95_mm < 0.8);
-	assert_true(r.completeness > 0.75);
+	assert_true(r.completeness >= 0.80); // the floor
 	assert_true(grown > 0); // squares without a readable code word, matched along the grid
 	assert_true(report.corner_multiplier >= 4.0);
 	assert_true(r.vertices > 1000);
