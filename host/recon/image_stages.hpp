@@ -230,10 +230,16 @@ struct MatchParams {
 	/// quadric fitted to its `surface_points` nearest matched points of other squares within
 	/// `surface_radius_mm` (at least half of them must be that near; below 6, a plane is fitted).
 	double max_surface_residual_mm = 2.5;
-	/// The same for a square with corners in one view only (its blob in the other view is cut or
-	/// merged, so the two centroids need not be one surface point): measured on unseen simulated
-	/// heads, the matches with the largest errors (up to 4 mm) were of this kind.
+	/// The same for a square cut or merged in one view: corners in one view only, and its area
+	/// in the two views out of the proportion its matched grid neighbours show (outside this
+	/// range). The two centroids need not be one surface point: on simulated heads the matches
+	/// with the largest errors (up to 4 mm) were of this kind.
 	double max_one_sided_residual_mm = 1.5;
+	std::array<double, 2> one_sided_area_proportion{{0.7, 1.5}};
+	/// An irregular square whose centroid is farther than this (about a grid pitch on the face)
+	/// from every matched point of other squares is dropped: it was grown or guided across an
+	/// occluding contour (chin over neck), where its neighbours' surface only extrapolates.
+	double max_irregular_isolation_mm = 10;
 	int surface_points = 10;
 	double surface_radius_mm = 20;
 };

@@ -379,6 +379,27 @@ double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p
 	return std::fabs(d.dot(n) - (f[0] * x * x + f[1] * x * y + f[2] * y * y + f[3] * x + f[4] * y + f[5]));
 }
 
+// Whether the matched squares i (camera a) and j (camera b) look cut or merged in one view: corners
+// in one view only, and areas out of proportion — the area ratio b/a of i and j against the median
+// ratio of i's matched grid neighbours (which carries the two views' foreshortening). Such a blob's
+// area centroid need not be the slide square's centre, so its match is held to a closer fit.
+bool cut_in_one_view(const CameraDetections &a, const CameraDetections &b, const std::vector<int> &partner,
+		     size_t i, int j, const MatchParams &params)
+{
+	const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
+	if (sa.has_corners == sb.has_corners)
+		return false;
+	std::vector<double> ratios;
+	for (int n : sa.neighbours)
+		if (n >= 0 && partner[size_t(n)] >= 0 && a.squares[size_t(n)].area > 0)
+			ratios.push_back(b.squares[size_t(partner[size_t(n)])].area / a.squares[size_t(n)].area);
+	if (ratios.empty() || sa.area <= 0)
+		return true;
+	std::nth_element(ratios.begin(), ratios.begin() + long(ratios.size() / 2), ratios.end());
+	const double proportion = sb.area / sa.area / ratios[ratios.size() / 2];
+	return proportion < params.one_sided_area_proportion[0] || proportion > params.one_sided_area_proportion[1];
+}
+
 // Removes the grown and guided squares, and the squares matched by their centroid alone (no
 // corner to check them by), whose centroid lies off the surface the other matched points describe
 // around it (its `surface_points` nearest, from other squares, within
@@ -403,6 +424,9 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 		std::vector<char> has_corners(squares_a, 0);
 		for (const PointMatch &x : pm->matches)
 			has_corners[size_t(x.square_a)] |= x.feature != kCentroid;
+		std::vector<int> partner(squares_a, -1);
+		for (const PointMatch &x : pm->matches)
+			partner[size_t(x.square_a)] = x.square_b;
 		std::vector<std::pair<double, size_t>> nearest;
 		std::vector<cv::Vec3d> hood;
 		for (size_t m = 0; m < pm->matches.size(); m++) {
@@ -421,11 +445,14 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 				for (size_t i = 0; i < k && nearest[i].first <= params.surface_radius_mm; i++)
 					hood.push_back(pts[nearest[i].second]);
 			}
-			// Corners in one view only: the other view's blob is cut or merged there, and its area
-			// centroid is not the slide square's centre, while the first view's is.
-			const bool one_sided = a.squares[size_t(x.square_a)].has_corners != b.squares[size_t(x.square_b)].has_corners;
-			const double limit = one_sided ? params.max_one_sided_residual_mm : params.max_surface_residual_mm;
-			if (hood.size() < std::max<size_t>(3, k / 2) ||
+			const double limit = cut_in_one_view(a, b, partner, size_t(x.square_a), x.square_b, params)
+						     ? params.max_one_sided_residual_mm
+						     : params.max_surface_residual_mm;
+			// Irregular (cut or bent) and far from every other matched point: grown or guided across
+			// an occluding contour from the squares around it, where the quadric only extrapolates.
+			const bool irregular = a.squares[size_t(x.square_a)].irregular || b.squares[size_t(x.square_b)].irregular;
+			const bool isolated = nearest.empty() || nearest[0].first > params.max_irregular_isolation_mm;
+			if (hood.size() < std::max<size_t>(3, k / 2) || (irregular && isolated) ||
 			    quadric_residual(hood, pts[m]) > limit)
 				drop_square_a[size_t(x.square_a)] = 1;
 		}
