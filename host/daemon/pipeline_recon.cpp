@@ -67,13 +67,13 @@ Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_outpu
 	out.quality = nlohmann::json::parse(recon::report_json(report), nullptr, false);
 	if (out.quality.is_discarded())
 		out.quality = nlohmann::json::object();
-	const std::string truth_path = capture.source_dir + "/ground_truth.ply";
-	if (access(truth_path.c_str(), R_OK) == 0) {
+	if (access((capture.source_dir + "/ground_truth.ply").c_str(), R_OK) == 0) {
 		recon::Mesh truth;
+		std::vector<CameraModel> lit_by;
 		eval::EvalResult e;
-		s = mesh_io::read_ply(truth_path, &truth);
+		s = eval::read_ground_truth(capture.source_dir, &truth, &lit_by);
 		if (s.ok())
-			s = eval::evaluate(mesh, truth, set.calibration.cameras, {}, eval::EvalParams(), &e);
+			s = eval::evaluate(mesh, truth, set.calibration.cameras, lit_by, eval::EvalParams(), &e);
 		if (s.ok())
 			out.quality["accuracy"] = {{"rms_mm", e.rms_mm},
 						   {"median_mm", e.median_mm},

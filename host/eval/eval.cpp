@@ -1,5 +1,6 @@
 // Reconstruction accuracy metrics. See eval.hpp.
 #include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
 #include "recon/fusion.hpp"
 #include "recon/raster.hpp"
 
@@ -7,6 +8,8 @@
 #include <cmath>
 #include <limits>
 #include <unordered_map>
+
+#include <unistd.h>
 
 namespace facescan::eval {
 
@@ -101,6 +104,25 @@ double MeshDistance::distance(const cv::Point3d &p, double max_mm) const
 				}
 	}
 	return best <= max_mm ? best : std::numeric_limits<double>::infinity();
+}
+
+Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
+			 std::vector<CameraModel> *ret_projectors)
+{
+	const std::string mesh_path = capture_dir + "/ground_truth.ply";
+	const std::string projectors_path = capture_dir + "/ground_truth_projectors.yaml";
+	if (access(mesh_path.c_str(), F_OK) != 0)
+		return Status::error(-ENOENT, mesh_path + ": no ground truth (not a simulated capture set)");
+	recon::Mesh truth;
+	Status s = mesh_io::read_ply(mesh_path, &truth);
+	Calibration projectors;
+	if (s.ok() && access(projectors_path.c_str(), F_OK) == 0)
+		s = read_calibration(projectors_path, &projectors);
+	if (!s.ok())
+		return s;
+	*ret_truth = std::move(truth);
+	*ret_projectors = std::move(projectors.cameras);
+	return {};
 }
 
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,

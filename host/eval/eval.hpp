@@ -8,6 +8,7 @@
 #include "recon/types.hpp"
 
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace facescan::eval {
@@ -51,6 +52,12 @@ struct EvalResult {
 	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
 	std::vector<signed char> truth_status;
 };
+
+/// A simulated capture set's ground truth: CAPTURE_DIR/ground_truth.ply (the head, world mm) and,
+/// when the set records them, the projectors that lit it (ground_truth_projectors.yaml; left
+/// empty for older sets). -ENOENT when the set has no ground truth.
+Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
+			 std::vector<CameraModel> *ret_projectors);
 
 /// Compares `recon` with `truth` (both world mm). Truth points are the truth mesh's vertices
 /// that at least `min_cameras` cameras see unoccluded and front-facing — and, when

@@ -1,7 +1,14 @@
 // The reconstruction library behind the daemon: input errors name their cause (the capture set
-// on disk, the booth's calibration file) and leave no output.
+// on disk, the booth's calibration file) and leave no output; on a simulated set its accuracy
+// figures are the benchmark's.
 #include "daemon/pipeline_recon.hpp"
+#include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
+#include "sim/sim.hpp"
 
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 
@@ -42,11 +49,55 @@ static void test_frames_without_calibration(void **)
 	assert_string_equal(r.backend_name().c_str(), "pipeline");
 }
 
+// A simulated scan left on disk as the booth's simulated cameras leave it: the daemon scores its
+// mesh as `facescan evaluate` and the benchmark do — truth points seen by two cameras and lit by
+// a projector of the rig that rendered it — not over points no pattern reached.
+static void test_accuracy_of_a_simulated_set(void **)
+{
+	char dir[] = "/tmp/facescan-pipeline-XXXXXX";
+	assert_non_null(mkdtemp(dir));
+	const facescan::sim::Rig rig = facescan::sim::default_rig();
+	facescan::sim::Scene scene;
+	assert_true(facescan::sim::scene_by_name("default", &scene).ok());
+	facescan::Pattern pattern;
+	assert_true(facescan::default_pattern(facescan::SlideSpec(), &pattern).ok());
+	facescan::CaptureSet set;
+	facescan::sim::SimTruth truth;
+	facescan::sim::SimOptions options;
+	options.texture_frames = false;
+	assert_true(facescan::sim::simulate(rig, scene, pattern, 1, &set, &truth, options).ok());
+	assert_true(facescan::sim::write_simulated_set(dir, set, truth).ok());
+
+	PipelineReconstructor r("", "");
+	Capture c;
+	c.source_dir = dir;
+	ReconOutput out;
+	assert_true(r.run(c, &out).ok());
+	assert_true(out.quality.contains("accuracy"));
+	const double completeness = out.quality["accuracy"]["completeness"].get<double>();
+
+	facescan::recon::Mesh mesh, head;
+	std::vector<facescan::CameraModel> lit_by;
+	assert_true(facescan::mesh_io::decode_draco(out.drc.data(), out.drc.size(), &mesh).ok());
+	assert_true(facescan::eval::read_ground_truth(dir, &head, &lit_by).ok());
+	assert_int_equal(lit_by.size(), rig.projectors.size());
+	facescan::eval::EvalResult want;
+	assert_true(facescan::eval::evaluate(mesh, head, set.calibration.cameras, facescan::sim::projector_models(rig),
+					     facescan::eval::EvalParams(), &want).ok());
+	std::printf("daemon accuracy on a simulated set: completeness %.1f %% (evaluate: %.1f %%)\n",
+		    100 * completeness, 100 * want.completeness);
+	// The daemon scores the mesh before Draco's quantisation, this test the decoded file.
+	assert_true(std::fabs(completeness - want.completeness) < 0.005);
+	assert_true(completeness >= 0.8);
+	std::system((std::string("rm -rf ") + dir).c_str());
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_missing_capture_set),
 		cmocka_unit_test(test_frames_without_calibration),
+		cmocka_unit_test(test_accuracy_of_a_simulated_set),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

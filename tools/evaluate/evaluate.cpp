@@ -7,7 +7,6 @@
 #include <nlohmann/json.hpp>
 
 #include <getopt.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <cstdlib>
@@ -91,20 +90,15 @@ int evaluate_main(int argc, char **argv)
 	recon::Mesh mesh, truth;
 	const bool drc = mesh_path.size() > 4 && mesh_path.compare(mesh_path.size() - 4, 4, ".drc") == 0;
 	Status s = drc ? mesh_io::read_draco(mesh_path, &mesh) : mesh_io::read_ply(mesh_path, &mesh);
+	// Which points were lit: the projectors the set records (written by the simulator), else
+	// the rig named, else the built-in default rig.
+	std::vector<CameraModel> projectors;
 	if (s.ok())
-		s = mesh_io::read_ply(dir + "/ground_truth.ply", &truth);
+		s = eval::read_ground_truth(dir, &truth, &projectors);
 	Calibration cal;
 	if (s.ok())
 		s = read_calibration(dir + "/calibration.yaml", &cal);
-	// Which points were lit: the projectors the set was rendered with (written beside the truth
-	// since the simulator records them), else the rig named, else the built-in default rig.
-	std::vector<CameraModel> projectors;
-	const std::string recorded = dir + "/ground_truth_projectors.yaml";
-	if (s.ok() && rig_path.empty() && access(recorded.c_str(), F_OK) == 0) {
-		Calibration lit;
-		s = read_calibration(recorded, &lit);
-		projectors = lit.cameras;
-	} else if (s.ok()) {
+	if (s.ok() && (projectors.empty() || !rig_path.empty())) {
 		sim::Rig rig = sim::default_rig();
 		if (!rig_path.empty())
 			s = sim::load_rig(rig_path, &rig);
