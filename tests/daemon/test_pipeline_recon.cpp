@@ -6,6 +6,7 @@
 #include "mesh_io/mesh_io.hpp"
 #include "sim/sim.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -89,6 +90,12 @@ static void test_accuracy_of_a_simulated_set(void **)
 	// The daemon scores the mesh before Draco's quantisation, this test the decoded file.
 	assert_true(std::fabs(completeness - want.completeness) < 0.005);
 	assert_true(completeness >= 0.8);
+	// The time is accounted for: reading the set, the pipeline's stages, encoding, the check.
+	std::vector<std::string> stages;
+	for (const auto &st : out.stage_ms)
+		stages.push_back(st.first);
+	for (const char *want : {"read", "detect", "encode", "accuracy"})
+		assert_true(std::find(stages.begin(), stages.end(), want) != stages.end());
 	std::system((std::string("rm -rf ") + dir).c_str());
 }
 
