@@ -9,7 +9,6 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <chrono>
-#include <unistd.h>
 
 namespace facescan::daemon {
 
@@ -74,12 +73,14 @@ Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_outpu
 	out.quality = nlohmann::json::parse(recon::report_json(report), nullptr, false);
 	if (out.quality.is_discarded())
 		out.quality = nlohmann::json::object();
-	if (access((capture.source_dir + "/ground_truth.ply").c_str(), R_OK) == 0) {
-		const auto t_eval = Clock::now();
-		recon::Mesh truth;
-		std::vector<CameraModel> lit_by;
+	// A simulated set carries its ground truth (-ENOENT: a real capture, nothing to score).
+	const auto t_eval = Clock::now();
+	recon::Mesh truth;
+	std::vector<CameraModel> lit_by;
+	s = capture.source_dir.empty() ? Status::error(-ENOENT, "frames from the cameras")
+				       : eval::read_ground_truth(capture.source_dir, &truth, &lit_by);
+	if (s.code() != -ENOENT) {
 		eval::EvalResult e;
-		s = eval::read_ground_truth(capture.source_dir, &truth, &lit_by);
 		if (s.ok())
 			s = eval::evaluate(mesh, truth, set.calibration.cameras, lit_by, eval::EvalParams(), &e);
 		if (s.ok())

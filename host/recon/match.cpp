@@ -164,13 +164,7 @@ public:
 	/// One round of guided matching; returns the squares of camera a it matched.
 	std::vector<size_t> guide()
 	{
-		std::vector<double> depth(a_.squares.size(), -1);
-		for (size_t i = 0; i < a_.squares.size(); i++) {
-			const int j = match_of_a_[i];
-			double z = 0;
-			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z))
-				depth[i] = z;
-		}
+		const std::vector<double> depth = matched_depths();
 		std::vector<int> choice(a_.squares.size(), -1), chosen_by(b_.squares.size(), 0);
 		for (size_t i = 0; i < a_.squares.size(); i++) {
 			if (match_of_a_[i] >= 0)
@@ -218,14 +212,11 @@ public:
 	int seed(int *ret_grown)
 	{
 		double lo = 1e300, hi = -1e300;
-		for (size_t i = 0; i < a_.squares.size(); i++) {
-			const int j = match_of_a_[i];
-			double z = 0;
-			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z)) {
+		for (double z : matched_depths())
+			if (z > 0) {
 				lo = std::min(lo, z);
 				hi = std::max(hi, z);
 			}
-		}
 		if (lo > hi)
 			return 0;
 		lo -= params_.seed_depth_margin_mm;
@@ -269,6 +260,19 @@ public:
 
 private:
 	bool accept(size_t i, int j) { return add_(i, j, true); }
+
+	// Depth (camera a, mm) of every matched square's centroid; -1 for the unmatched.
+	std::vector<double> matched_depths() const
+	{
+		std::vector<double> depth(a_.squares.size(), -1);
+		for (size_t i = 0; i < a_.squares.size(); i++) {
+			const int j = match_of_a_[i];
+			double z = 0;
+			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z))
+				depth[i] = z;
+		}
+		return depth;
+	}
 
 	// How many squares with a known letter in both views growing from the pair (i, j) would
 	// match, without matching them.
@@ -422,11 +426,11 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 		std::vector<char> drop_square_a(squares_a, 0);
 		// Squares matched by their centroid alone: no corner passed the epipolar test for them.
 		std::vector<char> has_corners(squares_a, 0);
-		for (const PointMatch &x : pm->matches)
-			has_corners[size_t(x.square_a)] |= x.feature != kCentroid;
 		std::vector<int> partner(squares_a, -1);
-		for (const PointMatch &x : pm->matches)
+		for (const PointMatch &x : pm->matches) {
+			has_corners[size_t(x.square_a)] |= x.feature != kCentroid;
 			partner[size_t(x.square_a)] = x.square_b;
+		}
 		std::vector<std::pair<double, size_t>> nearest;
 		std::vector<cv::Vec3d> hood;
 		for (size_t m = 0; m < pm->matches.size(); m++) {
