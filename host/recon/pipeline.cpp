@@ -185,6 +185,37 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		return s;
 	timer.lap("fuse");
 
+	report.sparse_vertices = int(mesh.positions.size());
+	report.sparse_triangles = int(mesh.triangles.size());
+
+	// Dense: per pair, seeded by its sparse model, moved by the pair's registration, fused.
+	if (params.dense_enabled) {
+		std::vector<DenseCloud> clouds(n - 1);
+		for (size_t p = 0; p + 1 < n; ++p) {
+			s = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p], params.dense,
+				       &clouds[p], &report.pairs[p].dense);
+			if (!s.ok())
+				return Status::error(s.code(), "pair " + std::to_string(p) + "-" +
+								       std::to_string(p + 1) + ": " + s.message());
+		}
+		for (const RegistrationPair &rp : report.registration) {
+			if (!rp.applied || rp.model < 0 || size_t(rp.model) >= clouds.size())
+				continue;
+			for (cv::Point3f &q : clouds[size_t(rp.model)].points)
+				q = cv::Point3f(rp.R * cv::Vec3d(q.x, q.y, q.z) + rp.T);
+		}
+		timer.lap("dense");
+		Mesh dense;
+		s = fuse_dense(clouds, cams, params.surface, &dense, &report.surface);
+		if (s.ok()) {
+			mesh = std::move(dense);
+			report.dense = true;
+		} else if (s.code() != -ENODATA) {
+			return s;
+		}
+		timer.lap("fuse_dense");
+	}
+
 	// Stage 10.
 	if (params.texture_enabled) {
 		s = texture_mesh(set.textures, set.frames, cams, params.texture, &mesh, &report.texture);
@@ -235,7 +266,14 @@ std::string report_json(const ReconReport &r)
 				 {"triangles", p.meshing.kept},
 				 {"triangles_dropped_long", p.meshing.dropped_long},
 				 {"triangles_dropped_grazing", p.meshing.dropped_grazing},
-				 {"median_edge_mm", p.meshing.median_edge_mm}});
+				 {"median_edge_mm", p.meshing.median_edge_mm},
+				 {"dense",
+				  {{"seeds", p.dense.seeds},
+				   {"prior_pixels", p.dense.prior_pixels},
+				   {"matched", p.dense.matched},
+				   {"low_confidence", p.dense.low_confidence},
+				   {"points", p.dense.points},
+				   {"median_seed_spacing_px", p.dense.median_spacing_px}}}});
 	j["pairs"] = pairs;
 	json reg = json::array();
 	for (const RegistrationPair &p : r.registration)
@@ -248,6 +286,11 @@ std::string report_json(const ReconReport &r)
 	j["fusion"] = {{"input_points", r.fusion.input_points}, {"vertices", r.fusion.vertices},
 		       {"merged", r.fusion.merged}, {"squares", r.fusion.squares}, {"triangles", r.fusion.triangles},
 		       {"median_edge_mm", r.fusion.meshing.median_edge_mm}};
+	j["dense"] = r.dense;
+	j["sparse"] = {{"vertices", r.sparse_vertices}, {"triangles", r.sparse_triangles}};
+	j["surface"] = {{"input_points", r.surface.input_points}, {"cells", r.surface.cells},
+			{"merged", r.surface.merged}, {"vertices", r.surface.vertices},
+			{"triangles", r.surface.triangles}, {"spacing_mm", r.surface.spacing_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},
 			{"vertex_colours", r.texture.vertex_colours},

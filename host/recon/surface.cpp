@@ -1,0 +1,229 @@
+// Stage 9 (dense): fusion of the dense clouds over the view sphere. See surface.hpp.
+#include "recon/surface.hpp"
+
+#include "recon/fusion.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::recon {
+
+namespace {
+
+struct Sample {
+	float u, v, r, w; // grid coordinates (cells), radius mm, weight
+	int cloud;
+};
+
+} // namespace
+
+Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
+		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats)
+{
+	SurfaceStats stats;
+	if (!(params.spacing_mm > 0) || !(params.agree_mm > 0) || params.max_cells < 16)
+		return Status::error(-EINVAL, "surface: spacing, agreement and grid size must be positive");
+	std::vector<cv::Point3d> some;
+	size_t total = 0;
+	for (const DenseCloud &c : clouds)
+		total += c.points.size();
+	stats.input_points = int(total);
+	if (total < 3)
+		return Status::error(-ENODATA, "surface: no dense points to fuse");
+	const size_t stride = std::max<size_t>(1, total / 20000);
+	size_t k = 0;
+	for (const DenseCloud &c : clouds)
+		for (const cv::Point3f &p : c.points)
+			if (k++ % stride == 0)
+				some.emplace_back(p);
+	const ViewFrame vf = view_frame(some, cameras);
+
+	// Directions → angles; the grid step in angle is the spacing at the median radius.
+	std::vector<Sample> samples;
+	samples.reserve(total);
+	std::vector<double> radii;
+	float umin = 1e9f, umax = -1e9f, vmin = 1e9f, vmax = -1e9f;
+	for (size_t ci = 0; ci < clouds.size(); ++ci) {
+		const DenseCloud &c = clouds[ci];
+		for (size_t i = 0; i < c.points.size(); ++i) {
+			const cv::Vec3d d = cv::Vec3d(cv::Point3d(c.points[i]) - vf.centre);
+			const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
+			const double r = cv::norm(d);
+			if (!(r > 1e-6) || !std::isfinite(r))
+				continue;
+			const float u = float(std::atan2(x, z)), v = float(std::atan2(y, std::hypot(x, z)));
+			const double border = std::min<double>(c.border_mm[i], params.border_cap_mm);
+			const float w = float((border + params.border_floor_mm) * std::max(0.05f, c.confidence[i]));
+			samples.push_back({u, v, float(r), w, int(ci)});
+			umin = std::min(umin, u);
+			umax = std::max(umax, u);
+			vmin = std::min(vmin, v);
+			vmax = std::max(vmax, v);
+			if (samples.size() % 16 == 0)
+				radii.push_back(r);
+		}
+	}
+	if (samples.size() < 3 || radii.empty())
+		return Status::error(-ENODATA, "surface: no dense points in front of the view sphere's centre");
+	std::nth_element(radii.begin(), radii.begin() + long(radii.size() / 2), radii.end());
+	const double r_med = radii[radii.size() / 2];
+	double step = params.spacing_mm / r_med; // radians per cell
+	auto cells_for = [&](double st) {
+		return (long(double(umax - umin) / st) + 3) * (long(double(vmax - vmin) / st) + 3);
+	};
+	while (cells_for(step) > params.max_cells)
+		step *= 1.25;
+	stats.spacing_mm = step * r_med;
+	const int W = int(double(umax - umin) / step) + 3, H = int(double(vmax - vmin) / step) + 3;
+	for (Sample &s : samples) {
+		s.u = float((s.u - umin) / step) + 1;
+		s.v = float((s.v - vmin) / step) + 1;
+	}
+
+	// Pass 1: each cell's strongest sample (bilinear splat weight times the sample's own).
+	const size_t n = size_t(W) * size_t(H);
+	std::vector<float> best_r(n, 0.f), best_w(n, 0.f);
+	auto splat = [&](const Sample &s, auto &&fn) {
+		const int x0 = int(std::floor(s.u)), y0 = int(std::floor(s.v));
+		const float fx = s.u - float(x0), fy = s.v - float(y0);
+		const float wx[2] = {1 - fx, fx}, wy[2] = {1 - fy, fy};
+		for (int dy = 0; dy < 2; ++dy)
+			for (int dx = 0; dx < 2; ++dx) {
+				const int x = x0 + dx, y = y0 + dy;
+				if (x < 0 || y < 0 || x >= W || y >= H)
+					continue;
+				fn(size_t(y) * size_t(W) + size_t(x), wx[dx] * wy[dy] * s.w);
+			}
+	};
+	for (const Sample &s : samples)
+		splat(s, [&](size_t c, float w) {
+			if (w > best_w[c]) {
+				best_w[c] = w;
+				best_r[c] = s.r;
+			}
+		});
+	// Pass 2: the weighted mean of the samples that agree with the strongest one.
+	std::vector<float> sum_wr(n, 0.f), sum_w(n, 0.f);
+	std::vector<unsigned char> from(n, 0); // bit per cloud (first 8)
+	const float agree = float(params.agree_mm);
+	for (const Sample &s : samples)
+		splat(s, [&](size_t c, float w) {
+			if (std::fabs(s.r - best_r[c]) > agree)
+				return;
+			sum_wr[c] += w * s.r;
+			sum_w[c] += w;
+			from[c] |= (unsigned char)(1u << (s.cloud & 7));
+		});
+	samples.clear();
+	samples.shrink_to_fit();
+	std::vector<float> radius(n, 0.f);
+	const float min_w = float(params.min_weight);
+	for (size_t c = 0; c < n; ++c)
+		if (sum_w[c] >= min_w) {
+			radius[c] = sum_wr[c] / sum_w[c];
+			stats.cells++;
+			stats.merged += (from[c] & (from[c] - 1)) != 0;
+		}
+	// Smoothing: each radius moves to the weighted mean of its agreeing 3x3 neighbourhood.
+	for (int pass = 0; pass < params.smooth_passes; ++pass) {
+		std::vector<float> next = radius;
+		for (int y = 1; y + 1 < H; ++y)
+			for (int x = 1; x + 1 < W; ++x) {
+				const size_t c = size_t(y) * size_t(W) + size_t(x);
+				if (radius[c] <= 0)
+					continue;
+				double sw = 0, swr = 0;
+				for (int dy = -1; dy <= 1; ++dy)
+					for (int dx = -1; dx <= 1; ++dx) {
+						const size_t q = size_t(y + dy) * size_t(W) + size_t(x + dx);
+						if (radius[q] <= 0 || std::fabs(radius[q] - radius[c]) > agree)
+							continue;
+						const double w = sum_w[q] * (dx == 0 && dy == 0 ? 2.0 : 1.0);
+						sw += w;
+						swr += w * radius[q];
+					}
+				next[c] = float(swr / sw);
+			}
+		radius.swap(next);
+	}
+
+	// Vertices: one per cell with a radius.
+	Mesh mesh;
+	std::vector<int> vid(n, -1);
+	for (int y = 0; y < H; ++y)
+		for (int x = 0; x < W; ++x) {
+			const size_t c = size_t(y) * size_t(W) + size_t(x);
+			if (radius[c] <= 0)
+				continue;
+			const double u = umin + (x - 1) * step, v = vmin + (y - 1) * step;
+			const cv::Vec3d dir = vf.right * (std::sin(u) * std::cos(v)) + vf.up * std::sin(v) +
+					      vf.towards * (std::cos(u) * std::cos(v));
+			vid[c] = int(mesh.positions.size());
+			mesh.positions.emplace_back(vf.centre + cv::Point3d(dir * double(radius[c])));
+		}
+	// Triangles: two per grid square (one when a corner is missing), none across a jump.
+	const double max_edge = params.max_edge_steps * stats.spacing_mm;
+	const double max_edge2 = max_edge * max_edge;
+	auto edge_ok = [&](int i, int j) {
+		const cv::Point3f d = mesh.positions[size_t(i)] - mesh.positions[size_t(j)];
+		return double(d.dot(d)) <= max_edge2;
+	};
+	auto add = [&](int i, int j, int l) {
+		if (i < 0 || j < 0 || l < 0 || !edge_ok(i, j) || !edge_ok(j, l) || !edge_ok(l, i))
+			return;
+		// Outward: away from the sphere's centre. Grid (x right, y up) seen from outside is
+		// counter-clockwise for (i, j, l) = (x, y), (x+1, y), (x, y+1); check rather than trust.
+		const cv::Point3f a = mesh.positions[size_t(i)], b = mesh.positions[size_t(j)],
+				  c = mesh.positions[size_t(l)];
+		const cv::Point3f nrm = (b - a).cross(c - a);
+		const cv::Point3f out = (a + b + c) * (1.f / 3) - cv::Point3f(vf.centre);
+		if (nrm.dot(out) >= 0)
+			mesh.triangles.emplace_back(i, j, l);
+		else
+			mesh.triangles.emplace_back(i, l, j);
+	};
+	for (int y = 0; y + 1 < H; ++y)
+		for (int x = 0; x + 1 < W; ++x) {
+			const size_t c = size_t(y) * size_t(W) + size_t(x);
+			const int v00 = vid[c], v10 = vid[c + 1], v01 = vid[c + size_t(W)], v11 = vid[c + size_t(W) + 1];
+			const int present = (v00 >= 0) + (v10 >= 0) + (v01 >= 0) + (v11 >= 0);
+			if (present == 4) {
+				add(v00, v10, v11);
+				add(v00, v11, v01);
+			} else if (present == 3) {
+				if (v00 < 0)
+					add(v10, v11, v01);
+				else if (v10 < 0)
+					add(v00, v11, v01);
+				else if (v01 < 0)
+					add(v00, v10, v11);
+				else
+					add(v00, v10, v01);
+			}
+		}
+	// Keep only vertices some triangle uses.
+	std::vector<int> remap(mesh.positions.size(), -1);
+	Mesh out;
+	for (cv::Vec3i &t : mesh.triangles)
+		for (int q = 0; q < 3; ++q) {
+			int &r = remap[size_t(t[q])];
+			if (r < 0) {
+				r = int(out.positions.size());
+				out.positions.push_back(mesh.positions[size_t(t[q])]);
+			}
+			t[q] = r;
+		}
+	out.triangles = std::move(mesh.triangles);
+	if (out.triangles.empty())
+		return Status::error(-ENODATA, "surface: no triangle survived over " + std::to_string(stats.cells) +
+						       " cells");
+	out.normals = vertex_normals(out.positions, out.triangles);
+	stats.vertices = int(out.positions.size());
+	stats.triangles = int(out.triangles.size());
+	*ret_mesh = std::move(out);
+	if (ret_stats)
+		*ret_stats = stats;
+	return {};
+}
+
+} // namespace facescan::recon
