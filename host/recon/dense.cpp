@@ -188,7 +188,7 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats)
+		  DenseStats *ret_stats, DensePairDebug *ret_debug)
 {
 	DenseStats stats;
 	DenseCloud cloud;
@@ -302,6 +302,11 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 				continue;
 			}
 			const float r = dr[x] / 16.f;
+			// At the edge of the search the true match may lie outside it.
+			if (std::fabs(r) > float(params.residual_px) - params.edge_margin_px) {
+				stats.at_search_edge++;
+				continue;
+			}
 			// The prior is read where the match landed: d = r + prior(x - r).
 			const int xs = int(std::lround(x - r));
 			const float p = xs >= 0 && xs < rp.size.width && pr[xs] == pr[xs] ? pr[xs] : pr[x];
@@ -348,6 +353,13 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		}
 	}
 	stats.points = int(cloud.points.size());
+	if (ret_debug) {
+		ret_debug->left = left;
+		ret_debug->warped = warped;
+		ret_debug->prior = prior;
+		ret_debug->disparity = cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+		total.copyTo(ret_debug->disparity, valid);
+	}
 	*ret_cloud = std::move(cloud);
 	if (ret_stats)
 		*ret_stats = stats;

@@ -27,6 +27,8 @@ struct DenseParams {
 	double scale = 0.5;
 	/// Residual search range, ± pixels at the matching resolution, around the prior.
 	int residual_px = 8;
+	/// Matches within this many pixels of the residual range's ends are dropped.
+	float edge_margin_px = 1.0f;
 	/// SGBM block size (odd) and smoothness penalties per channel (P1, P2 = factor * cn * block²).
 	int block = 5;
 	int p1_factor = 8, p2_factor = 32;
@@ -36,9 +38,9 @@ struct DenseParams {
 	int speckle_range = 2;	    // ... when they differ from their surroundings by more (px)
 	/// A seed triangle is used for the prior only when its longest side is at most this many
 	/// times the median seed spacing (longer ones bridge holes and depth jumps).
-	double max_seed_edge_factor = 4.0;
+	double max_seed_edge_factor = 12.0;
 	/// The prior is extended past its rim by this many median seed spacings (nearest value).
-	double extrapolate_spacings = 1.0;
+	double extrapolate_spacings = 2.0;
 	int min_seeds = 6;	    // fewer seeds: the pair gets no dense cloud
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
@@ -62,8 +64,16 @@ struct DenseStats {
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
 	int islands = 0;	// dropped as part of a small matched region
+	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
+};
+
+/// What dense_pair saw, for `recon --debug`: the rectified left view, the right view warped by the
+/// prior (where the prior is right, the two line up), the prior and the final disparity (CV_32F,
+/// NaN where none).
+struct DensePairDebug {
+	cv::Mat left, warped, prior, disparity;
 };
 
 /// Rectification of a pair at a matching scale: rotations R1, R2 (camera → rectified), shared
@@ -96,6 +106,6 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 /// the seeds). Frames are the pair's 8-bit BGR pattern frames.
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats);
+		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
 
 } // namespace facescan::recon

@@ -73,7 +73,7 @@ Status check_input(const CaptureSet &set, const ReconParams &params)
 } // namespace
 
 Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
-		   ReconReport *ret_report)
+		   ReconReport *ret_report, ReconDebug *ret_debug)
 {
 	ReconReport report;
 	report.scan_id = set.meta.scan_id;
@@ -95,6 +95,11 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 							       &dets[size_t(c)]);
 		}
 	});
+	if (ret_debug)
+		for (size_t c = 0; c < n; ++c)
+			if (det_status[c].ok())
+				ret_debug->images.push_back({"cam" + std::to_string(c) + "_squares",
+							     draw_detections(set.frames[c], dets[c])});
 	for (size_t c = 0; c < n; ++c) {
 		if (!det_status[c].ok())
 			return Status::error(det_status[c].code(),
@@ -125,6 +130,9 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 							       ": " + s.message());
 		matches[p].cam_a = int(p);
 		matches[p].cam_b = int(p + 1);
+		if (ret_debug)
+			ret_debug->images.push_back({"pair" + std::to_string(p) + "_matches",
+						     draw_matches(set.frames[p], set.frames[p + 1], matches[p])});
 		PairReport pr;
 		pr.cam_a = int(p);
 		pr.cam_b = int(p + 1);
@@ -192,8 +200,24 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 	if (params.dense_enabled) {
 		std::vector<DenseCloud> clouds(n - 1);
 		for (size_t p = 0; p + 1 < n; ++p) {
+			DensePairDebug dbg;
 			s = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p], params.dense,
-				       &clouds[p], &report.pairs[p].dense);
+				       &clouds[p], &report.pairs[p].dense, ret_debug ? &dbg : nullptr);
+			if (ret_debug && s.ok() && !dbg.left.empty()) {
+				const std::string name = "pair" + std::to_string(p);
+				double lo = 0, hi = 0;
+				cv::Mat finite = dbg.prior == dbg.prior;
+				if (cv::countNonZero(finite) > 0)
+					cv::minMaxLoc(dbg.prior, &lo, &hi, nullptr, nullptr, finite);
+				cv::Mat overlay;
+				cv::addWeighted(dbg.left, 0.5, dbg.warped, 0.5, 0, overlay);
+				ret_debug->images.push_back({name + "_rectified_left", dbg.left});
+				ret_debug->images.push_back({name + "_warped_right", dbg.warped});
+				ret_debug->images.push_back({name + "_left_over_warped", overlay});
+				ret_debug->images.push_back({name + "_prior", colour_map(dbg.prior, lo, hi)});
+				ret_debug->images.push_back({name + "_disparity", colour_map(dbg.disparity, lo, hi)});
+				ret_debug->clouds.push_back({name + "_dense", clouds[p].points, clouds[p].confidence});
+			}
 			if (!s.ok())
 				return Status::error(s.code(), "pair " + std::to_string(p) + "-" +
 								       std::to_string(p + 1) + ": " + s.message());

@@ -12,6 +12,7 @@
 #include "capture/capture_set.hpp"
 #include "common/status.hpp"
 #include "pattern/pattern.hpp"
+#include "recon/debug.hpp"
 #include "recon/dense.hpp"
 #include "recon/fusion.hpp"
 #include "recon/image_stages.hpp"
@@ -92,8 +93,10 @@ struct ReconReport {
 /// Reconstructs the face of `set` projected with `pattern`. Checks its input first: at least
 /// two cameras, one frame per camera matching its calibrated size, no blank frame, and a
 /// pattern found in every frame; each failure names the camera and the cause.
+/// `ret_debug`, when given, receives the overlays `facescan recon --debug` writes (debug.hpp); it
+/// is filled as far as the pipeline got, also when it fails.
 Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
-		   ReconReport *ret_report);
+		   ReconReport *ret_report, ReconDebug *ret_debug = nullptr);
 
 /// The report as JSON text (keys documented in docs/recon.md).
 std::string report_json(const ReconReport &report);

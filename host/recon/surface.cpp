@@ -147,6 +147,35 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		radius.swap(next);
 	}
 
+	// Outliers: a radius farther than `max_median_dev_mm` from the median of its neighbourhood is
+	// a mismatch (a dark nostril, an eye corner) the pair's own checks let through.
+	if (params.median_radius > 0) {
+		const int R = params.median_radius;
+		std::vector<float> next = radius, win;
+		for (int y = 0; y < H; ++y)
+			for (int x = 0; x < W; ++x) {
+				const size_t c = size_t(y) * size_t(W) + size_t(x);
+				if (radius[c] <= 0)
+					continue;
+				win.clear();
+				for (int dy = -R; dy <= R; ++dy)
+					for (int dx = -R; dx <= R; ++dx) {
+						const int xx = x + dx, yy = y + dy;
+						if (xx < 0 || yy < 0 || xx >= W || yy >= H)
+							continue;
+						const float q = radius[size_t(yy) * size_t(W) + size_t(xx)];
+						if (q > 0)
+							win.push_back(q);
+					}
+				std::nth_element(win.begin(), win.begin() + long(win.size() / 2), win.end());
+				if (std::fabs(win[win.size() / 2] - radius[c]) > float(params.max_median_dev_mm)) {
+					next[c] = 0;
+					stats.outliers++;
+				}
+			}
+		radius.swap(next);
+	}
+
 	// Vertices: one per cell with a radius.
 	Mesh mesh;
 	std::vector<int> vid(n, -1);
@@ -201,6 +230,42 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 					add(v00, v10, v01);
 			}
 		}
+	// Pieces: a sheet split off the face by a gap (a rim of the crown seen at grazing angles, a
+	// speck of hair) is more often wrong than right; only pieces of at least `min_piece_fraction`
+	// of the largest one stay.
+	{
+		std::vector<int> parent(mesh.positions.size());
+		for (size_t i = 0; i < parent.size(); ++i)
+			parent[i] = int(i);
+		auto find = [&](int i) {
+			while (parent[size_t(i)] != i) {
+				parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
+				i = parent[size_t(i)];
+			}
+			return i;
+		};
+		for (const cv::Vec3i &t : mesh.triangles)
+			for (int q = 1; q < 3; ++q) {
+				const int a = find(t[0]), b = find(t[q]);
+				if (a != b)
+					parent[size_t(a)] = b;
+			}
+		std::vector<int> size(parent.size(), 0);
+		for (const cv::Vec3i &t : mesh.triangles)
+			size[size_t(find(t[0]))]++;
+		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
+		const double min_size = params.min_piece_fraction * largest;
+		std::vector<cv::Vec3i> kept;
+		kept.reserve(mesh.triangles.size());
+		for (const cv::Vec3i &t : mesh.triangles) {
+			if (size[size_t(find(t[0]))] >= min_size)
+				kept.push_back(t);
+			else
+				stats.piece_triangles_dropped++;
+		}
+		mesh.triangles.swap(kept);
+	}
+
 	// Keep only vertices some triangle uses.
 	std::vector<int> remap(mesh.positions.size(), -1);
 	Mesh out;

@@ -26,12 +26,17 @@ struct SurfaceParams {
 	int smooth_passes = 1;	      // 3x3 averaging of agreeing neighbours' radii
 	double min_weight = 0.05;     // cells with less total weight are empty
 	long max_cells = 6000000;     // bigger grids take a coarser step (bounds memory)
+	int median_radius = 3;	      // cells: the neighbourhood of the outlier test (0: none)
+	double max_median_dev_mm = 1.0; // farther from the neighbourhood's median radius: an outlier
+	double min_piece_fraction = 0.02; // connected pieces smaller than this * the largest are dropped
 };
 
 struct SurfaceStats {
 	int input_points = 0;
 	int cells = 0;	     // grid cells with a radius
 	int merged = 0;	     // cells averaged from two or more pairs
+	int outliers = 0;    // cells dropped by the median test
+	int piece_triangles_dropped = 0; // triangles of pieces split off the main surface
 	int vertices = 0, triangles = 0;
 	double spacing_mm = 0;
 };
