@@ -70,7 +70,121 @@ void window_ncc(const cv::Mat &a, const cv::Mat &b, int block, cv::Mat *ret_ncc,
 	cv::sqrt(va, *ret_std_a);
 }
 
+// Disparities (rectified pixels) a point can have in the pair when it lies within `depth_mm`
+// of where the two optical axes pass closest, and within ±`side_mm` across them.
+void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b, double depth_mm,
+			    double side_mm, double *ret_lo, double *ret_hi)
+{
+	const cv::Vec3d ca = a.centre(), cb = b.centre();
+	const cv::Vec3d da = a.R.t() * cv::Vec3d(0, 0, 1), db = b.R.t() * cv::Vec3d(0, 0, 1);
+	const cv::Vec3d w = ca - cb;
+	const double A = da.dot(da), B = da.dot(db), C = db.dot(db), D = da.dot(w), E = db.dot(w);
+	const double den = A * C - B * B;
+	const double sa = std::fabs(den) > 1e-9 ? (B * E - C * D) / den : 500, tb = std::fabs(den) > 1e-9 ? (A * E - B * D) / den : 500;
+	const cv::Vec3d centre = ((ca + da * sa) + (cb + db * tb)) * 0.5;
+	cv::Vec3d axis = da + db;
+	axis *= 1.0 / std::max(1e-9, cv::norm(axis));
+	cv::Vec3d side = axis.cross(a.R.t() * cv::Vec3d(0, 1, 0));
+	side *= 1.0 / std::max(1e-9, cv::norm(side));
+	const cv::Vec3d up = side.cross(axis);
+	double lo = 1e9, hi = -1e9;
+	for (int k = 0; k < 27; ++k) {
+		const cv::Vec3d p = centre + axis * ((k % 3 - 1) * depth_mm) + side * ((k / 3 % 3 - 1) * side_mm) +
+				    up * ((k / 9 - 1) * side_mm);
+		const cv::Vec3d ra = rp.R1 * (a.R * p + a.T), rb = rp.R2 * (b.R * p + b.T);
+		if (ra[2] <= 0 || rb[2] <= 0)
+			continue;
+		const double d = (rp.f * ra[0] / ra[2] + rp.cx1) - (rp.f * rb[0] / rb[2] + rp.cx2);
+		lo = std::min(lo, d);
+		hi = std::max(hi, d);
+	}
+	*ret_lo = lo;
+	*ret_hi = hi;
+}
+
+// The coarse stage: SGBM over a whole disparity range at half the matching resolution, for the
+// parts of the face no code point reaches (CV_32F at the matching resolution, NaN = none).
+cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, double hi, const DenseParams &params)
+{
+	cv::Mat l2, r2;
+	cv::pyrDown(left, l2);
+	cv::pyrDown(right, r2);
+	const int mind = int(std::floor(lo / 2)) - 2;
+	int nd = int(std::ceil((hi - lo) / 2)) + 4;
+	nd = std::min(((nd + 15) / 16) * 16, std::max(16, (l2.cols / 2 / 16) * 16));
+	const int block = params.block, cn = l2.channels();
+	cv::Ptr<cv::StereoSGBM> sgbm =
+		cv::StereoSGBM::create(mind, nd, block, params.p1_factor * cn * block * block,
+				       params.p2_factor * cn * block * block, 1, 31, 10, params.speckle_window / 4, 1,
+				       cv::StereoSGBM::MODE_SGBM_3WAY);
+	cv::Mat d16;
+	sgbm->compute(l2, r2, d16);
+	cv::Mat coarse(l2.size(), CV_32F);
+	for (int y = 0; y < l2.rows; ++y) {
+		const short *dr = d16.ptr<short>(y);
+		float *cr = coarse.ptr<float>(y);
+		for (int x = 0; x < l2.cols; ++x)
+			cr[x] = dr[x] >= mind * 16 ? 2.f * dr[x] / 16.f : std::numeric_limits<float>::quiet_NaN();
+	}
+	cv::Mat out;
+	cv::resize(coarse, out, left.size(), 0, 0, cv::INTER_NEAREST);
+	return out;
+}
+
 } // namespace
+
+// The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
+// search where they are not (checked against the long triangles that bridge such holes, so the
+// coarse search cannot move the surface to another copy of the slide); the long triangles where
+// the coarse search found nothing.
+static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const RectifiedPair &rp, const CameraModel &a,
+			   const CameraModel &b, const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
+			   const DenseParams &params, DenseStats *stats)
+{
+	const bool coded = int(seeds.size()) >= params.min_seeds;
+	cv::Mat tight = coded ? disparity_prior(rp.size, seeds, seed_d, params.tight_edge_factor,
+						 params.extrapolate_spacings, &stats->median_spacing_px)
+			      : cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	cv::Mat loose = coded ? disparity_prior(rp.size, seeds, seed_d, params.max_seed_edge_factor,
+						 params.extrapolate_spacings, nullptr)
+			      : tight.clone();
+	if (!params.coarse)
+		return coded ? loose : tight;
+	double lo, hi;
+	if (coded) {
+		lo = *std::min_element(seed_d.begin(), seed_d.end());
+		hi = *std::max_element(seed_d.begin(), seed_d.end());
+		const double margin = 0.15 * (hi - lo) + 2 * params.residual_px;
+		lo -= margin;
+		hi += margin;
+	} else {
+		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &lo, &hi);
+		if (!(hi > lo))
+			return tight;
+	}
+	cv::Mat right;
+	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, params);
+	cv::Mat prior = tight;
+	for (int y = 0; y < prior.rows; ++y) {
+		float *pr = prior.ptr<float>(y);
+		const float *cr = coarse.ptr<float>(y), *lr = loose.ptr<float>(y);
+		for (int x = 0; x < prior.cols; ++x) {
+			if (pr[x] == pr[x])
+				continue;
+			const bool has_c = cr[x] == cr[x], has_l = lr[x] == lr[x];
+			if (has_c && (!has_l || std::fabs(cr[x] - lr[x]) <= float(params.residual_px))) {
+				pr[x] = cr[x];
+				stats->coarse_pixels++;
+			} else if (has_l) {
+				pr[x] = lr[x];
+			}
+		}
+	}
+	// The coarse disparity is blocky (half resolution, nearest); smooth it where it was used so
+	// the warp does not shear the squares.
+	return prior;
+}
 
 Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret)
 {
@@ -130,7 +244,7 @@ cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, do
 }
 
 cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
-			const std::vector<double> &seed_disparity, const DenseParams &params,
+			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
 			double *ret_median_spacing_px)
 {
 	cv::Mat prior(size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
@@ -147,7 +261,7 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 	const double spacing = median(edges);
 	if (ret_median_spacing_px)
 		*ret_median_spacing_px = spacing;
-	const double max_edge = params.max_seed_edge_factor * spacing;
+	const double max_edge = max_edge_factor * spacing;
 	for (const cv::Vec3i &t : tris) {
 		cv::Point2d p[3];
 		double d[3], longest = 0;
@@ -160,7 +274,7 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 			fill_triangle(&prior, p, d);
 	}
 	// Past the rim: the nearest prior value, out to `extrapolate_spacings` seed spacings.
-	const double reach = params.extrapolate_spacings * spacing;
+	const double reach = extrapolate_spacings * spacing;
 	if (reach < 1)
 		return prior;
 	cv::Mat invalid = prior != prior; // NaN
@@ -221,18 +335,13 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		seed_d.push_back(ra[i].x - rb[i].x);
 	}
 	stats.seeds = int(seeds.size());
-	if (stats.seeds < params.min_seeds) {
-		*ret_cloud = std::move(cloud);
-		if (ret_stats)
-			*ret_stats = stats;
-		return {};
-	}
-	const cv::Mat prior = disparity_prior(rp.size, seeds, seed_d, params, &stats.median_spacing_px);
+	cv::Mat left, right;
+	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::Mat prior = build_prior(left, frame_b, rp, a, b, seeds, seed_d, params, &stats);
 
 	// The left view rectified; the right one rectified and warped by the prior in one remap:
 	// warped(x, y) = right_rectified(x - prior(x, y), y).
-	cv::Mat left, warped;
-	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::Mat warped;
 	cv::Mat wx(rp.size, CV_32F), wy(rp.size, CV_32F);
 	for (int y = 0; y < rp.size.height; ++y) {
 		const float *pr = prior.ptr<float>(y);

@@ -36,12 +36,20 @@ struct DenseParams {
 	int disp12_max_diff = 1;    // left-right check, pixels at the matching resolution
 	int speckle_window = 80;    // connected components smaller than this are dropped...
 	int speckle_range = 2;	    // ... when they differ from their surroundings by more (px)
-	/// A seed triangle is used for the prior only when its longest side is at most this many
-	/// times the median seed spacing (longer ones bridge holes and depth jumps).
+	/// Seed triangles whose longest side is at most `tight_edge_factor` median seed spacings give
+	/// the prior; longer ones, up to `max_seed_edge_factor`, bridge holes and only bound (or,
+	/// where the coarse search finds nothing, give) the prior there.
+	double tight_edge_factor = 4.0;
 	double max_seed_edge_factor = 12.0;
+	/// The coarse search (half the matching resolution, the seeds' whole disparity range) fills
+	/// the prior where no small seed triangle reaches. With fewer than `min_seeds` seeds it is the
+	/// whole prior, over the disparities of the working volume: `volume_depth_mm` along the
+	/// cameras' axes and `volume_side_mm` across, around where the axes pass closest.
+	bool coarse = true;
+	double volume_depth_mm = 150, volume_side_mm = 120;
 	/// The prior is extended past its rim by this many median seed spacings (nearest value).
 	double extrapolate_spacings = 2.0;
-	int min_seeds = 6;	    // fewer seeds: the pair gets no dense cloud
+	int min_seeds = 6;	    // fewer seeds: the code gives no prior (the coarse search alone does)
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
 	/// Points whose NCC over the block is below this are dropped (0..1).
@@ -61,6 +69,7 @@ struct DenseCloud {
 struct DenseStats {
 	int seeds = 0;	       // sparse points used
 	int prior_pixels = 0;  // pixels with a prior (matching resolution)
+	int coarse_pixels = 0; // ... of which the coarse search gave the prior
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
 	int islands = 0;	// dropped as part of a small matched region
@@ -98,8 +107,10 @@ cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, do
 
 /// Piecewise-linear disparity prior over the seeds (rectified left pixel → disparity): CV_32F,
 /// NaN where there is none. Exposed for tests.
+/// Triangles longer than `max_edge_factor` median seed spacings are left out; past the rim the
+/// nearest value reaches `extrapolate_spacings` spacings.
 cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
-			const std::vector<double> &seed_disparity, const DenseParams &params,
+			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
 			double *ret_median_spacing_px);
 
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
