@@ -173,7 +173,8 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const Re
 			if (pr[x] == pr[x])
 				continue;
 			const bool has_c = cr[x] == cr[x], has_l = lr[x] == lr[x];
-			if (has_c && (!has_l || std::fabs(cr[x] - lr[x]) <= float(params.residual_px))) {
+			(void)has_l;
+			if (has_c) {
 				pr[x] = cr[x];
 				stats->coarse_pixels++;
 			} else if (has_l) {
@@ -338,6 +339,28 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	cv::Mat left, right;
 	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 	cv::Mat prior = build_prior(left, frame_b, rp, a, b, seeds, seed_d, params, &stats);
+	// Only where the pattern falls: its squares and gaps give every window about one pitch wide
+	// a contrast that unlit skin, hair and the booth's walls (sensor noise only) do not have.
+	{
+		cv::Mat grey, g32, mean, sq;
+		cv::cvtColor(left, grey, cv::COLOR_BGR2GRAY);
+		grey.convertTo(g32, CV_32F);
+		const double pitch = stats.median_spacing_px > 0 ? 2 * stats.median_spacing_px : params.default_pitch_px;
+		const int win = std::max(5, int(std::lround(params.contrast_window_pitches * pitch)) | 1);
+		cv::boxFilter(g32, mean, CV_32F, cv::Size(win, win));
+		cv::boxFilter(g32.mul(g32), sq, CV_32F, cv::Size(win, win));
+		cv::Mat var = sq - mean.mul(mean);
+		const float min_var = float(params.min_pattern_contrast * params.min_pattern_contrast);
+		for (int y = 0; y < prior.rows; ++y) {
+			float *pr = prior.ptr<float>(y);
+			const float *vr = var.ptr<float>(y);
+			for (int x = 0; x < prior.cols; ++x)
+				if (pr[x] == pr[x] && vr[x] < min_var) {
+					pr[x] = std::numeric_limits<float>::quiet_NaN();
+					stats.unlit++;
+				}
+		}
+	}
 
 	// The left view rectified; the right one rectified and warped by the prior in one remap:
 	// warped(x, y) = right_rectified(x - prior(x, y), y).
@@ -422,6 +445,35 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			tr[x] = r + p;
 			vr[x] = 255;
 		}
+	}
+	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
+	// rim of the matched region are where matches go wrong: both are trimmed.
+	{
+		cv::Mat bad(rp.size, CV_8U, cv::Scalar(0));
+		const float g = float(params.max_disparity_gradient);
+		for (int y = 1; y + 1 < rp.size.height; ++y) {
+			const uchar *vu = valid.ptr<uchar>(y - 1), *vr = valid.ptr<uchar>(y), *vd = valid.ptr<uchar>(y + 1);
+			const float *tu = total.ptr<float>(y - 1), *tr = total.ptr<float>(y), *td = total.ptr<float>(y + 1);
+			uchar *br = bad.ptr<uchar>(y);
+			for (int x = 1; x + 1 < rp.size.width; ++x) {
+				if (!vr[x])
+					continue;
+				if ((vr[x - 1] && vr[x + 1] && std::fabs(tr[x + 1] - tr[x - 1]) > 2 * g) ||
+				    (vu[x] && vd[x] && std::fabs(td[x] - tu[x]) > 2 * g))
+					br[x] = 255;
+			}
+		}
+		if (params.rim_px > 0) {
+			cv::Mat eroded;
+			cv::erode(valid, eroded, cv::Mat(), cv::Point(-1, -1), params.rim_px);
+			cv::Mat rim = valid & ~eroded;
+			stats.rim += cv::countNonZero(rim);
+			valid = eroded;
+		}
+		cv::dilate(bad, bad, cv::Mat(), cv::Point(-1, -1), 1);
+		cv::Mat steep = valid & bad;
+		stats.steep += cv::countNonZero(steep);
+		valid.setTo(0, bad);
 	}
 	// Islands are mismatches (a lit speck of hair, the rim of a shadow): only regions of at least
 	// `min_region_px` pixels stay.

@@ -52,10 +52,20 @@ struct DenseParams {
 	int min_seeds = 6;	    // fewer seeds: the code gives no prior (the coarse search alone does)
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
+	/// Pixels whose grey standard deviation over a window of `contrast_window_pitches` square
+	/// pitches (twice the median seed spacing; `default_pitch_px` without seeds) is below this
+	/// are not under the pattern: not matched.
+	double min_pattern_contrast = 6;
+	double contrast_window_pitches = 1.5;
+	double default_pitch_px = 16;
 	/// Points whose NCC over the block is below this are dropped (0..1).
 	double min_confidence = 0.3;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
+	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
+	/// default booth) and their neighbours are dropped; so is a rim of `rim_px` pixels.
+	double max_disparity_gradient = 1.5;
+	int rim_px = 2;
 };
 
 /// One pair's dense points, world mm (before registration moves them).
@@ -70,10 +80,12 @@ struct DenseStats {
 	int seeds = 0;	       // sparse points used
 	int prior_pixels = 0;  // pixels with a prior (matching resolution)
 	int coarse_pixels = 0; // ... of which the coarse search gave the prior
+	int unlit = 0;	       // prior pixels dropped as not under the pattern
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
+	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
