@@ -464,8 +464,21 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			}
 		}
 		if (params.rim_px > 0) {
+			// Only the region's outline is a rim: pinholes SGBM left inside it are filled first
+			// so that erosion does not widen them.
+			cv::Mat filled = valid.clone(), labels, region_stats, centroids;
+			const int nl = cv::connectedComponentsWithStats(~valid, labels, region_stats, centroids, 4, CV_32S);
+			for (int y = 0; y < rp.size.height; ++y) {
+				const int *lr = labels.ptr<int>(y);
+				uchar *fr = filled.ptr<uchar>(y);
+				for (int x = 0; x < rp.size.width; ++x)
+					if (lr[x] > 0 && lr[x] < nl &&
+					    region_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= params.pinhole_px)
+						fr[x] = 255;
+			}
 			cv::Mat eroded;
-			cv::erode(valid, eroded, cv::Mat(), cv::Point(-1, -1), params.rim_px);
+			cv::erode(filled, eroded, cv::Mat(), cv::Point(-1, -1), params.rim_px);
+			eroded &= valid;
 			cv::Mat rim = valid & ~eroded;
 			stats.rim += cv::countNonZero(rim);
 			valid = eroded;

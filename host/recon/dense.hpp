@@ -66,6 +66,7 @@ struct DenseParams {
 	/// default booth) and their neighbours are dropped; so is a rim of `rim_px` pixels.
 	double max_disparity_gradient = 1.5;
 	int rim_px = 2;
+	int pinhole_px = 60; // unmatched holes up to this size do not count as rim
 };
 
 /// One pair's dense points, world mm (before registration moves them).

@@ -295,7 +295,13 @@ std::string report_json(const ReconReport &r)
 				  {{"seeds", p.dense.seeds},
 				   {"prior_pixels", p.dense.prior_pixels},
 				   {"matched", p.dense.matched},
+				   {"coarse_pixels", p.dense.coarse_pixels},
+				   {"unlit", p.dense.unlit},
 				   {"low_confidence", p.dense.low_confidence},
+				   {"at_search_edge", p.dense.at_search_edge},
+				   {"steep", p.dense.steep},
+				   {"rim", p.dense.rim},
+				   {"islands", p.dense.islands},
 				   {"points", p.dense.points},
 				   {"median_seed_spacing_px", p.dense.median_spacing_px}}}});
 	j["pairs"] = pairs;
