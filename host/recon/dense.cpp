@@ -187,6 +187,80 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const Re
 	return prior;
 }
 
+void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity)
+{
+	// The pair rectified again at twice the matching resolution, with the same geometry doubled,
+	// so that full-resolution x = 2 * matching x.
+	const double k = params.refine_scale;
+	const cv::Size size(int(std::lround(rp.size.width * k)), int(std::lround(rp.size.height * k)));
+	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k, 0, rp.f * k, rp.cy * k, 0, 0, 1);
+	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k, 0, rp.f * k, rp.cy * k, 0, 0, 1);
+	cv::Mat m1x, m1y, m2x, m2y, ga, gb, L, R;
+	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(rp.R1), cv::Mat(Ka), size, CV_32FC1, m1x, m1y);
+	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), cv::Mat(rp.R2), cv::Mat(Kb), size, CV_32FC1, m2x, m2y);
+	cv::cvtColor(frame_a, ga, cv::COLOR_BGR2GRAY);
+	cv::cvtColor(frame_b, gb, cv::COLOR_BGR2GRAY);
+	cv::remap(ga, L, m1x, m1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::remap(gb, R, m2x, m2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	L.convertTo(L, CV_32F);
+	R.convertTo(R, CV_32F);
+	// The disparity at full resolution (NaN-free: invalid pixels carry 0 and are masked).
+	cv::Mat d0(disparity->size(), CV_32F, cv::Scalar(0)), v32;
+	disparity->copyTo(d0, valid);
+	valid.convertTo(v32, CV_32F, 1.0 / 255);
+	cv::Mat D, W;
+	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
+	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
+	D *= k;
+	const cv::Size win(params.refine_window, params.refine_window);
+	cv::Mat muL;
+	cv::boxFilter(L, muL, CV_32F, win);
+	const cv::Mat Lz = L - muL;
+	cv::Mat mx(size, CV_32F), my(size, CV_32F);
+	for (int it = 0; it < params.refine_iterations; ++it) {
+		for (int y = 0; y < size.height; ++y) {
+			const float *dr = D.ptr<float>(y);
+			float *xr = mx.ptr<float>(y), *yr = my.ptr<float>(y);
+			for (int x = 0; x < size.width; ++x) {
+				xr[x] = float(x) - dr[x];
+				yr[x] = float(y);
+			}
+		}
+		cv::Mat Rw, g, muR, e, ge, gg, ng;
+		cv::remap(R, Rw, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+		cv::Sobel(Rw, g, CV_32F, 1, 0, 3, 1.0 / 8);
+		cv::boxFilter(Rw, muR, CV_32F, win);
+		e = Lz - (Rw - muR); // zero-mean: an exposure offset between the cameras is not a shift
+		cv::boxFilter(g.mul(e), ge, CV_32F, win);
+		cv::boxFilter(g.mul(g), gg, CV_32F, win);
+		// R(x - D - s) ≈ Rw(x) - s g, so the residual e = L - Rw is minimised by s = -Σge / Σgg.
+		const float min_gg = float(params.refine_min_gradient * params.refine_min_gradient);
+		for (int y = 0; y < size.height; ++y) {
+			float *dr = D.ptr<float>(y);
+			const float *ger = ge.ptr<float>(y), *ggr = gg.ptr<float>(y), *wr = W.ptr<float>(y);
+			for (int x = 0; x < size.width; ++x) {
+				if (wr[x] < 0.99f || ggr[x] < min_gg)
+					continue;
+				const float step = std::clamp(-ger[x] / ggr[x], -0.5f, 0.5f);
+				dr[x] += step;
+			}
+		}
+	}
+	// Back to the matching resolution: the full-resolution value at each matching pixel.
+	for (int y = 0; y < disparity->rows; ++y) {
+		float *out = disparity->ptr<float>(y);
+		const uchar *vr = valid.ptr<uchar>(y);
+		const int yy = std::min(size.height - 1, int(std::lround(y * k)));
+		for (int x = 0; x < disparity->cols; ++x) {
+			if (!vr[x])
+				continue;
+			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
+			out[x] = D.at<float>(yy, xx) / float(k);
+		}
+	}
+}
+
 Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret)
 {
 	if (!(scale > 0.05 && scale <= 2))
@@ -446,6 +520,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			vr[x] = 255;
 		}
 	}
+	if (params.refine_iterations > 0)
+		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
 	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
 	// rim of the matched region are where matches go wrong: both are trimmed.
 	{

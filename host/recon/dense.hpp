@@ -67,6 +67,14 @@ struct DenseParams {
 	double max_disparity_gradient = 1.5;
 	int rim_px = 2;
 	int pinhole_px = 60; // unmatched holes up to this size do not count as rim
+	/// Sub-pixel refinement after SGBM: Lucas-Kanade along the rows at `refine_scale` times the
+	/// matching resolution (2: the cameras' own), zero-mean windows of `refine_window` pixels,
+	/// where the window's mean squared gradient exceeds `refine_min_gradient`² (a flat square's
+	/// interior keeps SGBM's value). 0 iterations: off.
+	int refine_iterations = 3;
+	double refine_scale = 2.0;
+	int refine_window = 9;
+	double refine_min_gradient = 2.0;
 };
 
 /// One pair's dense points, world mm (before registration moves them).
@@ -125,6 +133,11 @@ cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, do
 cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
 			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
 			double *ret_median_spacing_px);
+
+/// Refines `disparity` (rectified matching pixels, CV_32F, valid where `valid` != 0) in place by
+/// Lucas-Kanade along the rows on the pair rectified at params.refine_scale times `rp`'s scale.
+void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
 
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
 /// the seeds). Frames are the pair's 8-bit BGR pattern frames.
