@@ -192,10 +192,17 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 {
 	// The pair rectified again at twice the matching resolution, with the same geometry doubled,
 	// so that full-resolution x = 2 * matching x.
+	// Only the bounding box of the valid pixels is refined (the face is a fraction of the frame).
+	cv::Mat nz;
+	cv::findNonZero(valid, nz);
+	if (nz.empty())
+		return;
+	const cv::Rect roi = cv::boundingRect(nz);
 	const double k = params.refine_scale;
-	const cv::Size size(int(std::lround(rp.size.width * k)), int(std::lround(rp.size.height * k)));
-	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k, 0, rp.f * k, rp.cy * k, 0, 0, 1);
-	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k, 0, rp.f * k, rp.cy * k, 0, 0, 1);
+	const cv::Size size(int(std::lround(roi.width * k)), int(std::lround(roi.height * k)));
+	const double ox = roi.x * k, oy = roi.y * k;
+	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
+	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
 	cv::Mat m1x, m1y, m2x, m2y, ga, gb, L, R;
 	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(rp.R1), cv::Mat(Ka), size, CV_32FC1, m1x, m1y);
 	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), cv::Mat(rp.R2), cv::Mat(Kb), size, CV_32FC1, m2x, m2y);
@@ -206,9 +213,10 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	L.convertTo(L, CV_32F);
 	R.convertTo(R, CV_32F);
 	// The disparity at full resolution (NaN-free: invalid pixels carry 0 and are masked).
-	cv::Mat d0(disparity->size(), CV_32F, cv::Scalar(0)), v32;
-	disparity->copyTo(d0, valid);
-	valid.convertTo(v32, CV_32F, 1.0 / 255);
+	// The right view is rectified with the left's column offset, so x stays x - disparity.
+	cv::Mat d0(roi.size(), CV_32F, cv::Scalar(0)), v32;
+	(*disparity)(roi).copyTo(d0, valid(roi));
+	valid(roi).convertTo(v32, CV_32F, 1.0 / 255);
 	cv::Mat D, W;
 	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
 	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
@@ -248,11 +256,11 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 		}
 	}
 	// Back to the matching resolution: the full-resolution value at each matching pixel.
-	for (int y = 0; y < disparity->rows; ++y) {
-		float *out = disparity->ptr<float>(y);
-		const uchar *vr = valid.ptr<uchar>(y);
+	for (int y = 0; y < roi.height; ++y) {
+		float *out = disparity->ptr<float>(roi.y + y) + roi.x;
+		const uchar *vr = valid.ptr<uchar>(roi.y + y) + roi.x;
 		const int yy = std::min(size.height - 1, int(std::lround(y * k)));
-		for (int x = 0; x < disparity->cols; ++x) {
+		for (int x = 0; x < roi.width; ++x) {
 			if (!vr[x])
 				continue;
 			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
@@ -462,8 +470,21 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		mind, nd, params.block, params.p1_factor * cn * params.block * params.block,
 		params.p2_factor * cn * params.block * params.block, params.disp12_max_diff, 31, params.uniqueness,
 		params.speckle_window, params.speckle_range, cv::StereoSGBM::MODE_SGBM_3WAY);
-	cv::Mat disp16;
-	sgbm->compute(left, warped, disp16);
+	// SGBM over the bounding box of the prior only (plus its own margins).
+	cv::Mat disp16(rp.size, CV_16S, cv::Scalar((mind - 1) * 16));
+	{
+		cv::Mat has = prior == prior, nz;
+		cv::findNonZero(has, nz);
+		if (!nz.empty()) {
+			const int m = nd + params.block + 4;
+			cv::Rect roi = cv::boundingRect(nz);
+			roi = cv::Rect(roi.x - m, roi.y - params.block, roi.width + 2 * m, roi.height + 2 * params.block) &
+			      cv::Rect(cv::Point(0, 0), rp.size);
+			cv::Mat d;
+			sgbm->compute(left(roi), warped(roi), d);
+			d.copyTo(disp16(roi));
+		}
+	}
 
 	// Confidence: NCC of the left window and the right window at the matched disparity.
 	cv::Mat grey_l, grey_w, grey_l32, grey_w32;
