@@ -269,6 +269,20 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	}
 }
 
+cv::Mat has_value(const cv::Mat &map)
+{
+	// Not `map == map`: OpenCV's vectorised compare does not keep IEEE semantics for NaN.
+	CV_Assert(map.type() == CV_32F);
+	cv::Mat out(map.size(), CV_8U);
+	for (int y = 0; y < map.rows; ++y) {
+		const float *r = map.ptr<float>(y);
+		uchar *o = out.ptr<uchar>(y);
+		for (int x = 0; x < map.cols; ++x)
+			o[x] = std::isnan(r[x]) ? 0 : 255;
+	}
+	return out;
+}
+
 Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret)
 {
 	if (!(scale > 0.05 && scale <= 2))
@@ -360,7 +374,7 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 	const double reach = extrapolate_spacings * spacing;
 	if (reach < 1)
 		return prior;
-	cv::Mat invalid = prior != prior; // NaN
+	cv::Mat invalid = ~has_value(prior);
 	if (cv::countNonZero(invalid) == invalid.rows * invalid.cols)
 		return prior;
 	cv::Mat dist, labels;
@@ -473,7 +487,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	// SGBM over the bounding box of the prior only (plus its own margins).
 	cv::Mat disp16(rp.size, CV_16S, cv::Scalar((mind - 1) * 16));
 	{
-		cv::Mat has = prior == prior, nz;
+		cv::Mat has = has_value(prior), nz;
 		cv::findNonZero(has, nz);
 		if (!nz.empty()) {
 			const int m = nd + params.block + 4;

@@ -48,7 +48,7 @@ struct DenseParams {
 	bool coarse = true;
 	double volume_depth_mm = 150, volume_side_mm = 120;
 	/// The prior is extended past its rim by this many median seed spacings (nearest value).
-	double extrapolate_spacings = 2.0;
+	double extrapolate_spacings = 0.0;
 	int min_seeds = 6;	    // fewer seeds: the code gives no prior (the coarse search alone does)
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
@@ -115,6 +115,9 @@ struct RectifiedPair {
 	cv::Size size;
 	cv::Mat map1x, map1y, map2x, map2y; // CV_32F
 };
+
+/// 255 where a CV_32F map has a value, 0 where it is NaN.
+cv::Mat has_value(const cv::Mat &map);
 
 /// Builds the rectification of cameras a, b at `scale`. -EINVAL for a degenerate pair.
 Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret);

@@ -206,7 +206,7 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 			if (ret_debug && s.ok() && !dbg.left.empty()) {
 				const std::string name = "pair" + std::to_string(p);
 				double lo = 0, hi = 0;
-				cv::Mat finite = dbg.prior == dbg.prior;
+				cv::Mat finite = has_value(dbg.prior);
 				if (cv::countNonZero(finite) > 0)
 					cv::minMaxLoc(dbg.prior, &lo, &hi, nullptr, nullptr, finite);
 				cv::Mat overlay;

@@ -13,6 +13,7 @@ namespace {
 struct Sample {
 	float u, v, r, w; // grid coordinates (cells), radius mm, weight
 	int cloud;
+	cv::Point3f p;
 };
 
 } // namespace
@@ -54,7 +55,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			const float u = float(std::atan2(x, z)), v = float(std::atan2(y, std::hypot(x, z)));
 			const double border = std::min<double>(c.border_mm[i], params.border_cap_mm);
 			const float w = float((border + params.border_floor_mm) * std::max(0.05f, c.confidence[i]));
-			samples.push_back({u, v, float(r), w, int(ci)});
+			samples.push_back({u, v, float(r), w, int(ci), c.points[i]});
 			umin = std::min(umin, u);
 			umax = std::max(umax, u);
 			vmin = std::min(vmin, v);
@@ -103,36 +104,44 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			}
 		});
 	// Pass 2: the weighted mean of the samples that agree with the strongest one.
-	std::vector<float> sum_wr(n, 0.f), sum_w(n, 0.f);
+	// A cell's vertex is the weighted mean of its samples' positions, not its centre's direction at
+	// their mean radius: on a surface slanted against the sphere the two differ by the slope times
+	// the samples' offset from the centre.
+	std::vector<cv::Point3f> sum_wp(n, cv::Point3f(0, 0, 0));
+	std::vector<float> sum_w(n, 0.f);
 	std::vector<unsigned char> from(n, 0); // bit per cloud (first 8)
 	const float agree = float(params.agree_mm);
 	for (const Sample &s : samples)
 		splat(s, [&](size_t c, float w) {
 			if (std::fabs(s.r - best_r[c]) > agree)
 				return;
-			sum_wr[c] += w * s.r;
+			sum_wp[c] += w * s.p;
 			sum_w[c] += w;
 			from[c] |= (unsigned char)(1u << (s.cloud & 7));
 		});
 	samples.clear();
 	samples.shrink_to_fit();
 	std::vector<float> radius(n, 0.f);
+	std::vector<cv::Point3f> pos(n, cv::Point3f(0, 0, 0));
+	const cv::Point3f centre(vf.centre);
 	const float min_w = float(params.min_weight);
 	for (size_t c = 0; c < n; ++c)
 		if (sum_w[c] >= min_w) {
-			radius[c] = sum_wr[c] / sum_w[c];
+			pos[c] = sum_wp[c] * (1.f / sum_w[c]);
+			radius[c] = float(cv::norm(pos[c] - centre));
 			stats.cells++;
 			stats.merged += (from[c] & (from[c] - 1)) != 0;
 		}
-	// Smoothing: each radius moves to the weighted mean of its agreeing 3x3 neighbourhood.
+	// Smoothing: each vertex moves to the weighted mean of its agreeing 3x3 neighbourhood.
 	for (int pass = 0; pass < params.smooth_passes; ++pass) {
-		std::vector<float> next = radius;
+		std::vector<cv::Point3f> next = pos;
 		for (int y = 1; y + 1 < H; ++y)
 			for (int x = 1; x + 1 < W; ++x) {
 				const size_t c = size_t(y) * size_t(W) + size_t(x);
 				if (radius[c] <= 0)
 					continue;
-				double sw = 0, swr = 0;
+				double sw = 0;
+				cv::Point3d swp(0, 0, 0);
 				for (int dy = -1; dy <= 1; ++dy)
 					for (int dx = -1; dx <= 1; ++dx) {
 						const size_t q = size_t(y + dy) * size_t(W) + size_t(x + dx);
@@ -140,11 +149,14 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 							continue;
 						const double w = sum_w[q] * (dx == 0 && dy == 0 ? 2.0 : 1.0);
 						sw += w;
-						swr += w * radius[q];
+						swp += w * cv::Point3d(pos[q]);
 					}
-				next[c] = float(swr / sw);
+				next[c] = cv::Point3f(swp * (1.0 / sw));
 			}
-		radius.swap(next);
+		pos.swap(next);
+		for (size_t c = 0; c < n; ++c)
+			if (radius[c] > 0)
+				radius[c] = float(cv::norm(pos[c] - centre));
 	}
 
 	// Outliers: a radius farther than `max_median_dev_mm` from the median of its neighbourhood is
@@ -184,11 +196,8 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			const size_t c = size_t(y) * size_t(W) + size_t(x);
 			if (radius[c] <= 0)
 				continue;
-			const double u = umin + (x - 1) * step, v = vmin + (y - 1) * step;
-			const cv::Vec3d dir = vf.right * (std::sin(u) * std::cos(v)) + vf.up * std::sin(v) +
-					      vf.towards * (std::cos(u) * std::cos(v));
 			vid[c] = int(mesh.positions.size());
-			mesh.positions.emplace_back(vf.centre + cv::Point3d(dir * double(radius[c])));
+			mesh.positions.push_back(pos[c]);
 		}
 	// Triangles: two per grid square (one when a corner is missing), none across a jump.
 	const double max_edge = params.max_edge_steps * stats.spacing_mm;
