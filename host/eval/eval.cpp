@@ -4,6 +4,8 @@
 #include "recon/fusion.hpp"
 #include "recon/raster.hpp"
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -106,8 +108,37 @@ double MeshDistance::distance(const cv::Point3d &p, double max_mm) const
 	return best <= max_mm ? best : std::numeric_limits<double>::infinity();
 }
 
+// The slide masks a simulated set records next to its projectors (absent = whole slides).
+static Status read_slide_masks(const std::string &path, size_t projectors,
+			       std::vector<std::vector<cv::Point2d>> *ret_masks)
+{
+	std::vector<std::vector<cv::Point2d>> masks(projectors);
+	try {
+		cv::FileStorage fs(path, cv::FileStorage::READ);
+		for (size_t j = 0; j < projectors; ++j) {
+			const std::string key = "cam" + std::to_string(j) + "_slide_mask";
+			const cv::FileNode n = fs[key];
+			if (n.empty())
+				continue;
+			if (!n.isSeq() || n.size() < 6 || n.size() % 2)
+				return Status::error(-EINVAL, path + ": field '" + key +
+								      "' must be a list x0, y0, x1, y1, ... of at least 3 points");
+			for (size_t k = 0; k < n.size(); k += 2) {
+				if (!n[int(k)].isReal() && !n[int(k)].isInt())
+					return Status::error(-EINVAL, path + ": field '" + key + "' holds a non-number");
+				masks[j].emplace_back(double(n[int(k)]), double(n[int(k + 1)]));
+			}
+		}
+	} catch (const cv::Exception &e) {
+		return Status::error(-EINVAL, path + ": " + e.msg);
+	}
+	*ret_masks = std::move(masks);
+	return {};
+}
+
 Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
-			 std::vector<CameraModel> *ret_projectors)
+			 std::vector<CameraModel> *ret_projectors,
+			 std::vector<std::vector<cv::Point2d>> *ret_masks)
 {
 	const std::string mesh_path = capture_dir + "/ground_truth.ply";
 	const std::string projectors_path = capture_dir + "/ground_truth_projectors.yaml";
@@ -116,12 +147,18 @@ Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 	recon::Mesh truth;
 	Status s = mesh_io::read_ply(mesh_path, &truth);
 	Calibration projectors;
-	if (s.ok() && access(projectors_path.c_str(), F_OK) == 0)
+	std::vector<std::vector<cv::Point2d>> masks;
+	if (s.ok() && access(projectors_path.c_str(), F_OK) == 0) {
 		s = read_calibration(projectors_path, &projectors);
+		if (s.ok() && ret_masks)
+			s = read_slide_masks(projectors_path, projectors.cameras.size(), &masks);
+	}
 	if (!s.ok())
 		return s;
 	*ret_truth = std::move(truth);
 	*ret_projectors = std::move(projectors.cameras);
+	if (ret_masks)
+		*ret_masks = std::move(masks);
 	return {};
 }
 
@@ -132,6 +169,8 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		return Status::error(-EINVAL, "evaluate: the reconstruction has no triangles");
 	if (truth.positions.empty() || truth.triangles.empty())
 		return Status::error(-EINVAL, "evaluate: the ground truth has no triangles");
+	if (params.projector_masks.size() > projectors.size())
+		return Status::error(-EINVAL, "evaluate: more slide masks than projectors");
 	EvalResult r;
 	r.vertices = int(recon.positions.size());
 	r.triangles = int(recon.triangles.size());
@@ -178,8 +217,22 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 			cams_seeing[i] += v[i];
 	}
 	std::vector<char> lit(pts.size(), projectors.empty() ? 1 : 0);
-	for (const CameraModel &proj : projectors) {
-		const std::vector<char> v = seen_by(proj);
+	for (size_t j = 0; j < projectors.size(); ++j) {
+		const CameraModel &proj = projectors[j];
+		std::vector<char> v = seen_by(proj);
+		if (j < params.projector_masks.size() && !params.projector_masks[j].empty()) {
+			// Only the slide's unmasked part throws light (pinhole: projectors have no lens model).
+			std::vector<cv::Point2f> poly;
+			for (const cv::Point2d &q : params.projector_masks[j])
+				poly.emplace_back(float(q.x), float(q.y));
+			for (size_t i = 0; i < pts.size(); ++i) {
+				if (!v[i])
+					continue;
+				const cv::Vec3d x = proj.K * (proj.R * cv::Vec3d(pts[i]) + proj.T);
+				v[i] = x[2] > 0 && cv::pointPolygonTest(poly, cv::Point2f(float(x[0] / x[2]), float(x[1] / x[2])),
+										false) >= 0;
+			}
+		}
 		for (size_t i = 0; i < pts.size(); ++i)
 			lit[i] |= v[i];
 	}
