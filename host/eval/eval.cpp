@@ -162,6 +162,29 @@ Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 	return {};
 }
 
+std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, const std::vector<cv::Point3f> &normals,
+			  const EvalParams &params, const std::vector<cv::Point2d> &slide_mask)
+{
+	const std::vector<cv::Point3d> pts(mesh.positions.begin(), mesh.positions.end());
+	const cv::Mat depth = recon::render_depth(device, mesh.positions, mesh.triangles, params.depth_scale);
+	std::vector<char> v = recon::visible_in(device, depth, params.depth_scale, pts, params.occlusion_tolerance_mm);
+	const cv::Vec3d c = device.centre();
+	std::vector<cv::Point2f> poly(slide_mask.begin(), slide_mask.end());
+	for (size_t i = 0; i < pts.size(); ++i) {
+		const cv::Vec3d view = c - cv::Vec3d(pts[i]);
+		const cv::Vec3d n(normals[i].x, normals[i].y, normals[i].z);
+		if (n.dot(view) < params.min_cos * cv::norm(view))
+			v[i] = 0;
+		if (v[i] && !poly.empty()) {
+			// Only the slide's unmasked part throws light.
+			const cv::Vec3d x = device.K * (device.R * cv::Vec3d(pts[i]) + device.T);
+			v[i] = x[2] > 0 && cv::pointPolygonTest(poly, cv::Point2f(float(x[0] / x[2]), float(x[1] / x[2])),
+								   false) >= 0;
+		}
+	}
+	return v;
+}
+
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
 		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result)
 {
@@ -197,42 +220,17 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	// Which truth points count: seen by >= min_cameras devices, lit by a projector if given.
 	std::vector<cv::Point3d> pts(truth.positions.begin(), truth.positions.end());
 	const std::vector<cv::Point3f> normals = recon::vertex_normals(truth.positions, truth.triangles);
-	auto seen_by = [&](const CameraModel &dev) {
-		const cv::Mat depth = recon::render_depth(dev, truth.positions, truth.triangles, params.depth_scale);
-		std::vector<char> v = recon::visible_in(dev, depth, params.depth_scale, pts,
-							params.occlusion_tolerance_mm);
-		const cv::Vec3d c = dev.centre();
-		for (size_t i = 0; i < pts.size(); ++i) {
-			const cv::Vec3d view = c - cv::Vec3d(pts[i]);
-			const cv::Vec3d n(normals[i].x, normals[i].y, normals[i].z);
-			if (n.dot(view) < params.min_cos * cv::norm(view))
-				v[i] = 0;
-		}
-		return v;
-	};
 	std::vector<int> cams_seeing(pts.size(), 0);
 	for (const CameraModel &cam : cameras) {
-		const std::vector<char> v = seen_by(cam);
+		const std::vector<char> v = seen_by(cam, truth, normals, params);
 		for (size_t i = 0; i < pts.size(); ++i)
 			cams_seeing[i] += v[i];
 	}
 	std::vector<char> lit(pts.size(), projectors.empty() ? 1 : 0);
 	for (size_t j = 0; j < projectors.size(); ++j) {
-		const CameraModel &proj = projectors[j];
-		std::vector<char> v = seen_by(proj);
-		if (j < params.projector_masks.size() && !params.projector_masks[j].empty()) {
-			// Only the slide's unmasked part throws light (pinhole: projectors have no lens model).
-			std::vector<cv::Point2f> poly;
-			for (const cv::Point2d &q : params.projector_masks[j])
-				poly.emplace_back(float(q.x), float(q.y));
-			for (size_t i = 0; i < pts.size(); ++i) {
-				if (!v[i])
-					continue;
-				const cv::Vec3d x = proj.K * (proj.R * cv::Vec3d(pts[i]) + proj.T);
-				v[i] = x[2] > 0 && cv::pointPolygonTest(poly, cv::Point2f(float(x[0] / x[2]), float(x[1] / x[2])),
-										false) >= 0;
-			}
-		}
+		const std::vector<char> v =
+			seen_by(projectors[j], truth, normals, params,
+				j < params.projector_masks.size() ? params.projector_masks[j] : std::vector<cv::Point2d>());
 		for (size_t i = 0; i < pts.size(); ++i)
 			lit[i] |= v[i];
 	}

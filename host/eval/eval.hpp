@@ -67,6 +67,13 @@ Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 			 std::vector<CameraModel> *ret_projectors,
 			 std::vector<std::vector<cv::Point2d>> *ret_masks = nullptr);
 
+/// Per vertex of `mesh` (world mm; `normals` per vertex): 1 when `device` sees it unoccluded
+/// (params.depth_scale, params.occlusion_tolerance_mm) and faces it at least params.min_cos —
+/// and, when `slide_mask` is not empty, the point projects inside that polygon (a projector's
+/// slide mask; projectors are pinholes). The test behind evaluate()'s "seen" and "lit".
+std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, const std::vector<cv::Point3f> &normals,
+			  const EvalParams &params, const std::vector<cv::Point2d> &slide_mask = {});
+
 /// Compares `recon` with `truth` (both world mm). Truth points are the truth mesh's vertices
 /// that at least `min_cameras` cameras see unoccluded and front-facing — and, when
 /// `projectors` is not empty, that at least one projector lights (the pattern can only be

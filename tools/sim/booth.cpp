@@ -66,6 +66,20 @@ std::vector<cv::Point2d> clip_to_half(const SimProjector &p, const std::vector<c
 
 } // namespace
 
+Status zone_mask(const SimProjector &p, double x_lo_mm, double x_hi_mm, std::vector<cv::Point2d> *ret_mask)
+{
+	const double W = p.size.width - 0.5, H = p.size.height - 0.5;
+	std::vector<cv::Point2d> poly = {{-0.5, -0.5}, {W, -0.5}, {W, H}, {-0.5, H}};
+	if (std::isfinite(x_lo_mm))
+		poly = clip_to_half(p, poly, x_lo_mm, true);
+	if (std::isfinite(x_hi_mm) && poly.size() >= 3)
+		poly = clip_to_half(p, poly, x_hi_mm, false);
+	if (poly.size() < 3)
+		return Status::error(-EINVAL, "zone mask: projector " + p.name + " does not reach its zone");
+	*ret_mask = std::move(poly);
+	return Status();
+}
+
 const BoothRanges &booth_ranges()
 {
 	static const BoothRanges r;
@@ -159,20 +173,12 @@ Status random_booth(uint64_t seed, double slide_pitch_px, RandomBooth *ret_booth
 	if (b.masked)
 		for (int j = 0; j < 3; j++) {
 			SimProjector &p = rig.projectors[size_t(j)];
-			const double W = p.size.width - 0.5, H = p.size.height - 0.5;
-			std::vector<cv::Point2d> poly = {{-0.5, -0.5}, {W, -0.5}, {W, H}, {-0.5, H}};
-			const double o = b.zone_overlap_mm;
-			if (j == 0)
-				poly = clip_to_half(p, poly, b.zone_left_mm + o, false);
-			if (j == 1) {
-				poly = clip_to_half(p, poly, b.zone_left_mm - o, true);
-				poly = clip_to_half(p, poly, b.zone_right_mm + o, false);
-			}
-			if (j == 2)
-				poly = clip_to_half(p, poly, b.zone_right_mm - o, true);
-			if (poly.size() < 3)
-				return Status::error(-EINVAL, "random booth: projector " + p.name + " has no zone on its slide");
-			p.mask = poly;
+			const double o = b.zone_overlap_mm, inf = INFINITY;
+			const double lo = j == 0 ? -inf : j == 1 ? b.zone_left_mm - o : b.zone_right_mm - o;
+			const double hi = j == 0 ? b.zone_left_mm + o : j == 1 ? b.zone_right_mm + o : inf;
+			Status st = zone_mask(p, lo, hi, &p.mask);
+			if (!st.ok())
+				return st;
 		}
 
 	// Lighting and sensor.

@@ -203,6 +203,14 @@ V3 mix(const V3 &a, const V3 &b, float t)
 	return a * (1 - t) + b * t;
 }
 
+// Height of the scalp hair's edge (canonical coordinates) at azimuth `az` about +y (0 in front,
+// pi at the back): it falls from the forehead past the temples to the nape.
+float hairline(float az)
+{
+	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
+	return std::max(line, -75.f);
+}
+
 // Linear albedo at a point of the head (canonical coordinates). Every HeadLook term is written
 // so that its default leaves the canonical head's albedo bit-identical.
 V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s, const HeadLook &look)
@@ -268,8 +276,7 @@ V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s, const
 	}
 	// Scalp hair above a hairline that falls from the forehead to the nape.
 	float az = std::atan2(p[0], p[2]); // 0 in front, pi at the back
-	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
-	line = std::max(line, -75.f) + float(look.hairline_mm);
+	float line = hairline(az) + float(look.hairline_mm);
 	const float ey = p[1] - s.ear_up, ez = p[2] + s.ear_back;
 	bool ear_zone = p[0] > 66 && ey < 22 && ey > -48 && ez < 10 && ez > -38;
 	float h = smoothstep(line - 3, line + 3, p[1]) * (ear_zone ? 0.f : 1.f);
@@ -310,6 +317,22 @@ const std::vector<HeadShapeRange> &head_shape_ranges()
 		{"nose_deviation_mm", &HeadShape::nose_deviation_mm, -2.5, 2.5},
 	};
 	return ranges;
+}
+
+std::vector<char> face_region(const HeadSpec &spec, const Mesh &head)
+{
+	Shape shape = make_shape(spec.shape);
+	shape.shoulders = spec.look.shoulders;
+	std::vector<char> out(head.vertices.size(), 0);
+	for (size_t i = 0; i < head.vertices.size(); i++) {
+		const V3 q = canonical(head.vertices[i], shape);
+		const float az = std::atan2(std::fabs(q[0]), q[2]);
+		const float ny = head.normals.empty() ? 0.f : head.normals[i][1];
+		// In front of the ears (the tragus is at ~1.6 rad), below the hairline, above the
+		// chin's lowest point, and not the jaw's or chin's under-side.
+		out[i] = az < 1.55f && q[1] <= hairline(az) + float(spec.look.hairline_mm) && q[1] >= -118.f && ny > -0.5f;
+	}
+	return out;
 }
 
 const std::vector<HeadLookRange> &head_look_ranges()

@@ -178,7 +178,7 @@ struct Parser {
 		if (!check_keys(node, where,
 				{"name", "azimuth_deg", "elevation_deg", "distance_mm", "target_mm",
 				 "roll_deg", "R", "T", "size", "focal_px", "principal_px", "power",
-				 "focus_mm", "blur_px", "defocus_px_per_100mm", "gamma", "mask"}))
+				 "focus_mm", "blur_px", "defocus_px_per_100mm", "gamma", "mask", "zone_mm"}))
 			return false;
 		Placement p;
 		if (!placement(node, where, &p))
@@ -208,6 +208,21 @@ struct Parser {
 		pr->size = cv::Size(int(p.size[0]), int(p.size[1]));
 		pr->K = intrinsics(p);
 		pose(p, &pr->R, &pr->T);
+		std::vector<double> zone;
+		bool has_zone = false;
+		vec(node, "zone_mm", where, 2, &zone, &has_zone);
+		if (!status.ok())
+			return false;
+		if (has_zone) {
+			if (!mask.empty())
+				return fail(where + ".zone_mm", "give mask or zone_mm, not both");
+			if (!(zone[0] < zone[1]))
+				return fail(where + ".zone_mm", "expected [x_lo, x_hi] with x_lo < x_hi");
+			const double lo = zone[0] <= -1000 ? -INFINITY : zone[0], hi = zone[1] >= 1000 ? INFINITY : zone[1];
+			Status st = zone_mask(*pr, lo, hi, &pr->mask);
+			if (!st.ok())
+				return fail(where + ".zone_mm", st.message());
+		}
 		return true;
 	}
 

@@ -407,6 +407,11 @@ struct RandomBooth {
 /// lengths are chosen for. -EINVAL when it is not positive.
 Status random_booth(uint64_t seed, double slide_pitch_px, RandomBooth *ret_booth);
 
+/// The slide mask that confines projector `p` to the zone x_lo_mm <= x <= x_hi_mm of the booth
+/// (either may be infinite): the slide clipped by the images of the vertical lines x = x_lo / x_hi
+/// at the face's depth (z = 60 mm). -EINVAL when nothing of the slide is left.
+Status zone_mask(const SimProjector &p, double x_lo_mm, double x_hi_mm, std::vector<cv::Point2d> *ret_mask);
+
 /// Places a scene's head as the booth drew it (offset and turn; the rest of the scene stays).
 void apply_head_pose(const RandomBooth &booth, Scene *scene);
 
@@ -426,6 +431,27 @@ double reprojection_rms(const CameraModel &a, const CameraModel &b, const std::v
 /// The booth as YAML text for the `booth:` section of booth.yaml (what was drawn, and the
 /// calibration error reached).
 std::string booth_yaml(const RandomBooth &booth, const std::vector<double> &calibration_rms_px);
+
+// ---- face coverage -----------------------------------------------------------------------------
+
+/// Per vertex of a head made by make_head(spec) (head coordinates, before any pose): 1 on the
+/// face as the issue asks it covered: from the hairline to under the chin, ear to ear (in front
+/// of the ears), the under-side of the jaw and the neck excluded.
+std::vector<char> face_region(const HeadSpec &spec, const Mesh &head);
+
+struct FaceCoverage {
+	int face_points = 0;
+	double lit = 0;			// fraction of face points some projector lights (mask included)
+	double lit_twice = 0;		// ... that two or more projectors light
+	double paired = 0;		// ... that both cameras of a consecutive pair see
+	double lit_and_paired = 0;	// ... lit and seen by a consecutive pair: what recon can reach
+};
+
+/// Where the rig's light and stereo pairs reach the face of `scene`'s head in its pose, by ray
+/// casting (no rendering): a projector lights a point it faces (cos >= 0.1) unshadowed, on its
+/// slide and inside its mask; a camera sees a point unoccluded, in its image, within 72 deg of
+/// the normal (cos >= 0.3). -EINVAL as make_head.
+Status face_coverage(const Rig &rig, const Scene &scene, FaceCoverage *ret_coverage);
 
 // ---- ray casting -------------------------------------------------------------------------------
 

@@ -58,7 +58,7 @@ static Mesh make_booth_wall(double radius, double height)
 	return m;
 }
 
-static cv::Matx33d rotation(double yaw_deg, double pitch_deg, double roll_deg)
+cv::Matx33d internal::head_rotation(double yaw_deg, double pitch_deg, double roll_deg)
 {
 	double y = yaw_deg * M_PI / 180, p = pitch_deg * M_PI / 180;
 	cv::Matx33d Ry(std::cos(y), 0, std::sin(y), 0, 1, 0, -std::sin(y), 0, std::cos(y));
@@ -82,7 +82,7 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 	Status st = make_head(scene.head, scene.skin, &head.mesh);
 	if (!st.ok())
 		return st;
-	transform_mesh(rotation(scene.yaw_deg, scene.pitch_deg, scene.roll_deg), scene.position, &head.mesh);
+	transform_mesh(internal::head_rotation(scene.yaw_deg, scene.pitch_deg, scene.roll_deg), scene.position, &head.mesh);
 	head.id = 1;
 	head.specular = 0.06f; // the sheen of skin
 	head.shininess = 24;

@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <vector>
 
 namespace facescan::cli {
 
@@ -47,13 +48,55 @@ static void simulate_usage(FILE *out)
 		     "  --scale S          camera resolution factor, K scaled to match (0 < S <= 4)\n"
 		     "  --supersample N    N x N rays per pixel (default: the rig's)\n"
 		     "  --no-texture       skip the texture frames\n"
-		     "  --contact-sheet P  also write a contact sheet (pattern + texture frames) to P\n");
+		     "  --contact-sheet P  also write a contact sheet (pattern + texture frames) to P\n"
+		     "  --coverage         render nothing: print how much of the face (hairline to chin,\n"
+		     "                     ear to ear) the rig lights and its stereo pairs see, for the\n"
+		     "                     head moved +-20 mm and turned +-10 deg (no --out needed)\n");
 }
 
 static int bad(const char *what, const char *value)
 {
 	std::fprintf(stderr, "facescan simulate: %s, got '%s'\n", what, value);
 	return 2;
+}
+
+// The face coverage of the rig over the head poses the issue asks a booth to take: nominal,
+// +-20 mm along each axis, turned +-10 deg in yaw and pitch, and the 8 corners of the +-20 mm
+// box each turned 10 deg (yaw sign alternating).
+static int print_coverage(const sim::Rig &rig, sim::Scene scene)
+{
+	struct Pose {
+		double x, y, z, yaw, pitch;
+	};
+	std::vector<Pose> poses = {{0, 0, 0, 0, 0},   {-20, 0, 0, 0, 0}, {20, 0, 0, 0, 0},  {0, -20, 0, 0, 0},
+				   {0, 20, 0, 0, 0},  {0, 0, -20, 0, 0}, {0, 0, 20, 0, 0},  {0, 0, 0, -10, 0},
+				   {0, 0, 0, 10, 0},  {0, 0, 0, 0, -10}, {0, 0, 0, 0, 10}};
+	for (int k = 0; k < 8; k++)
+		poses.push_back({k & 1 ? 20.0 : -20.0, k & 2 ? 20.0 : -20.0, k & 4 ? 20.0 : -20.0, k & 1 ? -10.0 : 10.0,
+				 k & 2 ? 10.0 : -10.0});
+	scene.head.cell_mm = 2.0; // coverage needs the shape, not the finest triangles
+	const cv::Vec3d base = scene.position;
+	std::printf("| head offset x, y, z (mm) | yaw, pitch (deg) | face lit | lit twice | seen by a pair | lit and seen |\n"
+		    "|---|---|---|---|---|---|\n");
+	double worst = 1, sum = 0;
+	for (const Pose &p : poses) {
+		scene.position = base + cv::Vec3d(p.x, p.y, p.z);
+		scene.yaw_deg = p.yaw;
+		scene.pitch_deg = p.pitch;
+		sim::FaceCoverage c;
+		Status st = sim::face_coverage(rig, scene, &c);
+		if (!st.ok()) {
+			std::fprintf(stderr, "facescan simulate: %s\n", st.message().c_str());
+			return 1;
+		}
+		std::printf("| %+.0f, %+.0f, %+.0f | %+.0f, %+.0f | %.1f %% | %.1f %% | %.1f %% | %.1f %% |\n", p.x, p.y, p.z,
+			    p.yaw, p.pitch, 100 * c.lit, 100 * c.lit_twice, 100 * c.paired, 100 * c.lit_and_paired);
+		worst = std::min(worst, c.lit_and_paired);
+		sum += c.lit_and_paired;
+	}
+	std::printf("lit and seen by a pair: mean %.1f %%, worst %.1f %% over %zu poses\n", 100 * sum / double(poses.size()),
+		    100 * worst, poses.size());
+	return 0;
 }
 
 int simulate_main(int argc, char **argv)
@@ -69,6 +112,7 @@ int simulate_main(int argc, char **argv)
 					 {"no-texture", no_argument, nullptr, 'n'},
 					 {"contact-sheet", required_argument, nullptr, 'k'},
 					 {"out", required_argument, nullptr, 'o'},
+					 {"coverage", no_argument, nullptr, 'C'},
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
 	std::string scene_name = "default", config, out, sheet, head_kind, booth = "default";
@@ -76,9 +120,9 @@ int simulate_main(int argc, char **argv)
 	bool head_seed_given = false, canonical_head = false;
 	double scale = 1;
 	int supersample = 0;
-	bool texture = true;
+	bool texture = true, coverage = false;
 	optind = 1;
-	for (int opt; (opt = getopt_long(argc, argv, "s:c:S:H:K:B:x:a:nk:o:h", options, nullptr)) != -1;) {
+	for (int opt; (opt = getopt_long(argc, argv, "s:c:S:H:K:B:x:a:nk:o:Ch", options, nullptr)) != -1;) {
 		char *end = nullptr;
 		switch (opt) {
 		case 's':
@@ -134,6 +178,9 @@ int simulate_main(int argc, char **argv)
 		case 'o':
 			out = optarg;
 			break;
+		case 'C':
+			coverage = true;
+			break;
 		case 'h':
 			simulate_usage(stdout);
 			return 0;
@@ -142,7 +189,7 @@ int simulate_main(int argc, char **argv)
 			return 2;
 		}
 	}
-	if (optind != argc || out.empty()) {
+	if (optind != argc || (out.empty() && !coverage)) {
 		std::fprintf(stderr, "facescan simulate: %s\n",
 			     out.empty() ? "--out DIR is required" : "unexpected argument");
 		simulate_usage(stderr);
@@ -214,6 +261,8 @@ int simulate_main(int argc, char **argv)
 	}
 	if (supersample)
 		rig.supersample = supersample;
+	if (coverage)
+		return print_coverage(rig, scene);
 	sim::SimOptions so;
 	so.texture_frames = texture;
 	CaptureSet set;
