@@ -94,7 +94,7 @@ int evaluate_main(int argc, char **argv)
 	// the rig named, else the built-in default rig.
 	std::vector<CameraModel> projectors;
 	if (s.ok())
-		s = eval::read_ground_truth(dir, &truth, &projectors);
+		s = eval::read_ground_truth(dir, &truth, &projectors, &params.projector_masks);
 	Calibration cal;
 	if (s.ok())
 		s = read_calibration(dir + "/calibration.yaml", &cal);
@@ -103,6 +103,7 @@ int evaluate_main(int argc, char **argv)
 		if (!rig_path.empty())
 			s = sim::load_rig(rig_path, &rig);
 		projectors = sim::projector_models(rig);
+		params.projector_masks = sim::projector_masks(rig);
 	}
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
