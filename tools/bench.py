@@ -78,13 +78,17 @@ def main():
             head = booth * 10 + k
             name = "booth%d-head%d" % (booth, head)
             cap = os.path.join(work, name)
-            subprocess.run(["rm", "-rf", cap], check=True)
-            print("bench: %s: simulate" % name, flush=True)
-            r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", "random",
-                                "--head-seed", str(head), "--out", cap], capture_output=True, text=True)
-            if r.returncode != 0:
-                print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
-                sys.exit(1)
+            # A set rendered by an earlier run of the same simulator is reused (BENCH_FRESH=1: never).
+            if os.environ.get("BENCH_FRESH") != "1" and os.path.exists(os.path.join(cap, "ground_truth.ply")):
+                print("bench: %s: reusing the rendered set" % name, flush=True)
+            else:
+                subprocess.run(["rm", "-rf", cap], check=True)
+                print("bench: %s: simulate" % name, flush=True)
+                r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", "random",
+                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True)
+                if r.returncode != 0:
+                    print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
+                    sys.exit(1)
             row = {"name": name, "booth": booth, "head": head}
             drc, rep = cap + ".drc", cap + ".json"
             row["recon_s"], row["peak_mb"] = measured([fs, "recon", cap, "-o", drc, "--report", rep], cap + "-recon.log")
