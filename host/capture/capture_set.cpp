@@ -49,55 +49,6 @@ std::string cam_key(int i, const char *field)
 	return "cam" + std::to_string(i) + "_" + field;
 }
 
-// Reads a whole small file the caller names as one of the capture set's. Opened non-blocking
-// so a FIFO or device under that name cannot hang us, and refused unless it is a regular file
-// of at most `max_bytes` (a reader never balloons on what it was handed).
-Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret)
-{
-	int fd = open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
-	if (fd < 0) {
-		int e = errno;
-		if (e == ENOENT)
-			return Status::error(ENOENT, path + ": missing");
-		return Status::error(e, path + ": cannot open: " + errno_text(e));
-	}
-	struct stat st;
-	if (fstat(fd, &st) < 0) {
-		int e = errno;
-		close(fd);
-		return Status::error(e, path + ": cannot stat: " + errno_text(e));
-	}
-	if (!S_ISREG(st.st_mode)) {
-		close(fd);
-		return Status::error(EINVAL, path + ": not a regular file");
-	}
-	if (static_cast<unsigned long long>(st.st_size) > max_bytes) {
-		close(fd);
-		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) +
-						    " bytes, more than the " + std::to_string(max_bytes) +
-						    " this file may have");
-	}
-	std::string text(size_t(st.st_size), '\0');
-	size_t got = 0;
-	while (got < text.size()) {
-		ssize_t n = read(fd, &text[got], text.size() - got);
-		if (n < 0 && errno == EINTR)
-			continue;
-		if (n < 0) {
-			int e = errno;
-			close(fd);
-			return Status::error(e, path + ": read failed: " + errno_text(e));
-		}
-		if (n == 0)
-			break; // shrank while we read: take what is there, the parser judges it
-		got += size_t(n);
-	}
-	close(fd);
-	text.resize(got);
-	*ret = std::move(text);
-	return {};
-}
-
 // The deepest bracket nesting of a YAML/JSON text, over-estimated: quoted strings are skipped
 // (with backslash escapes), and the result is the larger of the count with and without
 // '#' comments, so no reading of the text a parser could take nests deeper than this. OpenCV's
@@ -277,6 +228,52 @@ Status read_size(const cv::FileStorage &fs, const std::string &file, const std::
 }
 
 } // namespace
+
+Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret)
+{
+	int fd = open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+	if (fd < 0) {
+		int e = errno;
+		if (e == ENOENT)
+			return Status::error(ENOENT, path + ": missing");
+		return Status::error(e, path + ": cannot open: " + errno_text(e));
+	}
+	struct stat st;
+	if (fstat(fd, &st) < 0) {
+		int e = errno;
+		close(fd);
+		return Status::error(e, path + ": cannot stat: " + errno_text(e));
+	}
+	if (!S_ISREG(st.st_mode)) {
+		close(fd);
+		return Status::error(EINVAL, path + ": not a regular file");
+	}
+	if (static_cast<unsigned long long>(st.st_size) > max_bytes) {
+		close(fd);
+		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) +
+						    " bytes, more than the " + std::to_string(max_bytes) +
+						    " this file may have");
+	}
+	std::string text(size_t(st.st_size), '\0');
+	size_t got = 0;
+	while (got < text.size()) {
+		ssize_t n = read(fd, &text[got], text.size() - got);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n < 0) {
+			int e = errno;
+			close(fd);
+			return Status::error(e, path + ": read failed: " + errno_text(e));
+		}
+		if (n == 0)
+			break; // shrank while we read: take what is there, the parser judges it
+		got += size_t(n);
+	}
+	close(fd);
+	text.resize(got);
+	*ret = std::move(text);
+	return {};
+}
 
 Status write_file_atomic(const std::string &path, const void *data, size_t size)
 {

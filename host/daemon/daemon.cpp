@@ -1,5 +1,6 @@
 #include "daemon/daemon.hpp"
 
+#include "capture/capture_set.hpp"
 #include "common/version.hpp"
 #include "daemon/control.hpp"
 #include "daemon/log.hpp"
@@ -85,17 +86,9 @@ Status take_lock(const std::string &path, const std::string &what, int *ret_fd)
 // A state file of ours (a few kB): parsed if it is a regular file under 1 MiB, else null.
 json read_small_json(const std::string &path)
 {
-	int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
-	if (fd < 0)
-		return json();
-	struct stat st;
 	std::string text;
-	if (fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size < (1 << 20)) {
-		text.resize(static_cast<size_t>(st.st_size));
-		ssize_t n = pread(fd, text.data(), text.size(), 0);
-		text.resize(n > 0 ? static_cast<size_t>(n) : 0);
-	}
-	::close(fd);
+	if (!read_regular_file(path, 1 << 20, &text).ok())
+		return json();
 	return json::parse(text, nullptr, false, true);
 }
 
@@ -655,13 +648,12 @@ struct Daemon::Impl {
 			return;
 		}
 		cap.report = report;
+		cap.scan_name = rec["base"];
 		double capture_ms = ms_since(t0);
 		post({Msg::Kind::captured, capture_ms,
 		      "[1/3] captured " + std::to_string(cap.frames.size()) + " frames of trigger " +
 			      std::to_string(report.sequence) + " in " + std::to_string(static_cast<long>(capture_ms)) + " ms",
 		      false, {{"trigger_report", report.raw}}});
-		if (cfg.keep_captures)
-			keep_capture(rec["base"], cap);
 
 		// reconstruction
 		auto t1 = Clock::now();
@@ -672,6 +664,10 @@ struct Daemon::Impl {
 			return;
 		}
 		double recon_ms = ms_since(t1);
+		// The worker backend keeps a whole set itself (keep_captures); others get the frames.
+		if (cfg.keep_captures &&
+		    access((cfg.spool_dir + "/captures/" + rec["base"].get<std::string>() + "/calibration.yaml").c_str(), F_OK) != 0)
+			keep_capture(rec["base"], cap);
 		json recon_stages = json::object();
 		for (const auto &st : out.stage_ms)
 			recon_stages[st.first] = st.second;
