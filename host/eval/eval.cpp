@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <unistd.h>
 
@@ -250,6 +251,27 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		covered += r.truth_status[i];
 	}
 	r.completeness = r.truth_counted ? double(covered) / r.truth_counted : 0;
+
+	// Vertices on the counted surface: within a 2 mm cell (or a neighbouring one) of a counted
+	// truth point. The neck, shoulders or hair a booth also reconstructs do not count.
+	{
+		const double cell = 2.0;
+		auto key = [&](const cv::Point3d &p, int dx, int dy, int dz) {
+			const long long x = (long long)std::floor(p.x / cell) + dx, y = (long long)std::floor(p.y / cell) + dy,
+					z = (long long)std::floor(p.z / cell) + dz;
+			return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
+		};
+		std::unordered_set<long long> counted;
+		for (size_t i = 0; i < pts.size(); ++i)
+			if (r.truth_status[i] >= 0)
+				counted.insert(key(pts[i], 0, 0, 0));
+		for (const cv::Point3f &v : recon.positions) {
+			bool near = false;
+			for (int k = 0; k < 27 && !near; ++k)
+				near = counted.count(key(cv::Point3d(v), k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1)) > 0;
+			r.face_vertices += near;
+		}
+	}
 	*ret_result = r;
 	return {};
 }

@@ -53,6 +53,7 @@ struct EvalResult {
 	int truth_points = 0;		// truth vertices
 	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)
 	int vertices = 0, triangles = 0;
+	int face_vertices = 0;		// vertices within ~2 mm of a counted truth point
 	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
 	std::vector<signed char> truth_status;
 };

@@ -160,7 +160,7 @@ int evaluate_main(int argc, char **argv)
 	std::printf("completeness: %.1f %% of %d truth points (seen by >= 2 cameras and lit) within %.2f mm\n",
 		    100.0 * r.completeness, r.truth_counted, params.completeness_mm);
 	if (!json_path.empty()) {
-		const nlohmann::json j = {{"vertices", r.vertices},	   {"triangles", r.triangles},
+		const nlohmann::json j = {{"vertices", r.vertices},	   {"face_vertices", r.face_vertices},	   {"triangles", r.triangles},
 					  {"rms_mm", r.rms_mm},		   {"median_mm", r.median_mm},
 					  {"p95_mm", r.p95_mm},		   {"max_mm", r.max_mm},
 					  {"completeness", r.completeness}, {"truth_points", r.truth_points},
