@@ -1,6 +1,7 @@
 #!/bin/sh
 # Installs the pinned pieces that do not come from Debian, cached under the build directory:
-#   web  build/web/node_modules: three.js (GLTFLoader, DRACOLoader, Draco decoder wasm) that the
+#   web  build/web/page: the viewer page (copied from host/viewer/page on every run), and
+#        build/web/node_modules: three.js (GLTFLoader, DRACOLoader, Draco decoder wasm) that the
 #        viewer serves, and the Khronos glTF validator the tests run (npm ci from
 #        host/viewer/package-lock.json: exact versions, checked integrity)
 #   py   build/pyenv: Python trimesh (+ numpy, pillow), the independent mesh reader of the tests
@@ -17,7 +18,13 @@ case $what in
 web)
 	dir=$build/web
 	stamp=$dir/.installed
+	# The page is the project's own: refreshed every time (cheap), atomically by rename.
+	sync_page() {
+		rm -rf "$dir/page.tmp" && cp -R "$root/host/viewer/page" "$dir/page.tmp" &&
+			rm -rf "$dir/page" && mv "$dir/page.tmp" "$dir/page"
+	}
 	if [ -f "$stamp" ] && cmp -s "$stamp" "$root/host/viewer/package-lock.json"; then
+		sync_page
 		exit 0
 	fi
 	command -v npm >/dev/null 2>&1 || { echo "install-web-deps: npm not found" >&2; exit 1; }
@@ -32,6 +39,7 @@ web)
 	cp "$root/host/viewer/package-lock.json" "$dir.tmp/.installed"
 	rm -rf "$dir"
 	mv "$dir.tmp" "$dir"
+	sync_page
 	;;
 py)
 	dir=$build/pyenv

@@ -20,6 +20,8 @@ int evaluate_main(int argc, char **argv);
 int calibrate_main(int argc, char **argv);
 int convert_main(int argc, char **argv);
 int dicom_main(int argc, char **argv);
+int view_main(int argc, char **argv);
+int thumbnail_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -34,6 +36,8 @@ static const Verb verbs[] = {
 	{"calibrate", "calibrate the cameras from images of a chessboard or ChArUco board", facescan::cli::calibrate_main},
 	{"convert", "convert a mesh between .drc .ply .glb .obj .stl", facescan::cli::convert_main},
 	{"dicom", "a mesh as a DICOM Encapsulated STL instance; C-STORE to the PACS", facescan::cli::dicom_main},
+	{"view", "serve the web viewer for a share or one scan on localhost", facescan::cli::view_main},
+	{"thumbnail", "render a mesh with the project's ray caster, framed as the viewer does", facescan::cli::thumbnail_main},
 };
 
 static void usage(FILE *out)
