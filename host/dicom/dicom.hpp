@@ -90,13 +90,19 @@ public:
 	explicit Outbox(std::string dir) : dir_(std::move(dir)) {}
 	/// Creates the directory (mode 0750) when missing. -errno otherwise.
 	Status open();
-	/// Queues an instance atomically; returns its path. -EINVAL for a bad UID.
-	Status put(const std::string &sop_instance_uid, const std::string &bytes, std::string *ret_path);
+	/// Queues an instance atomically; returns its path. `note` (optional) is kept beside it
+	/// (<name>.note) and handed back when it is sent: facescand puts the path of the scan's
+	/// metadata there, to record the delivery. -EINVAL for a bad UID.
+	Status put(const std::string &sop_instance_uid, const std::string &bytes, const std::string &note,
+		   std::string *ret_path);
 	/// Paths waiting, oldest first.
 	std::vector<std::string> pending() const;
-	/// Sends the pending instances in order, stopping at the first that fails: 0 when all went
-	/// (ret_sent counts them), else the failure of the first that did not (the rest wait).
-	Status flush(const Pacs &pacs, std::vector<std::string> *ret_sent_uids);
+	struct Sent {
+		std::string sop_instance_uid, note;
+	};
+	/// Sends the pending instances in order, stopping at the first that fails: 0 when all went,
+	/// else the failure of the first that did not (it and the rest wait). ret_sent: what went.
+	Status flush(const Pacs &pacs, std::vector<Sent> *ret_sent);
 	const std::string &dir() const { return dir_; }
 
 private:

@@ -15,6 +15,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 
 namespace facescan::dicom {
@@ -138,7 +139,8 @@ std::vector<std::string> Outbox::pending() const
 	return names;
 }
 
-Status Outbox::put(const std::string &uid, const std::string &bytes, std::string *ret_path)
+Status Outbox::put(const std::string &uid, const std::string &bytes, const std::string &note,
+		   std::string *ret_path)
 {
 	Status s = validate_uid(uid);
 	if (!s.ok())
@@ -155,6 +157,11 @@ Status Outbox::put(const std::string &uid, const std::string &bytes, std::string
 	char head[16];
 	std::snprintf(head, sizeof head, "%010llu_", seq + 1);
 	const std::string path = dir_ + "/" + head + uid + ".dcm";
+	if (!note.empty()) { // the note first: whoever sees the instance sees its note
+		s = write_file_atomic(path + ".note", note.data(), note.size());
+		if (!s.ok())
+			return s;
+	}
 	s = write_file_atomic(path, bytes.data(), bytes.size());
 	if (!s.ok())
 		return s;
@@ -162,9 +169,9 @@ Status Outbox::put(const std::string &uid, const std::string &bytes, std::string
 	return {};
 }
 
-Status Outbox::flush(const Pacs &pacs, std::vector<std::string> *ret_sent_uids)
+Status Outbox::flush(const Pacs &pacs, std::vector<Sent> *ret_sent)
 {
-	ret_sent_uids->clear();
+	ret_sent->clear();
 	for (const std::string &path : pending()) {
 		Status s = c_store(pacs, path);
 		if (!s.ok())
@@ -183,7 +190,13 @@ Status Outbox::flush(const Pacs &pacs, std::vector<std::string> *ret_sent_uids)
 		}
 		if (unlink(path.c_str()) < 0)
 			return Status::error(-errno, path + ": sent but cannot remove: " + std::strerror(errno));
-		ret_sent_uids->push_back(uid);
+		Sent sent{uid, ""};
+		std::ifstream note(path + ".note");
+		if (note) {
+			std::getline(note, sent.note, '\0');
+			unlink((path + ".note").c_str());
+		}
+		ret_sent->push_back(sent);
 	}
 	return {};
 }

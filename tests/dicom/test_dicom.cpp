@@ -119,11 +119,11 @@ static void test_outbox_order(void **)
 	dcm::Outbox box(std::string(tmpl) + "/dicom");
 	assert_true(box.open().ok());
 	std::string a, b, again;
-	assert_true(box.put("1.2.3", "first", &a).ok());
-	assert_true(box.put("1.2.4", "second", &b).ok());
-	assert_true(box.put("1.2.3", "first", &again).ok()); // queued once
+	assert_true(box.put("1.2.3", "first", "note-a", &a).ok());
+	assert_true(box.put("1.2.4", "second", "", &b).ok());
+	assert_true(box.put("1.2.3", "first", "", &again).ok()); // queued once
 	assert_string_equal(a.c_str(), again.c_str());
-	assert_int_equal(box.put("1.02", "bad", &again).code(), -EINVAL);
+	assert_int_equal(box.put("1.02", "bad", "", &again).code(), -EINVAL);
 	const std::vector<std::string> p = box.pending();
 	assert_int_equal(p.size(), 2);
 	assert_string_equal(p[0].c_str(), a.c_str());
@@ -134,7 +134,7 @@ static void test_outbox_order(void **)
 	pacs.host = "127.0.0.1";
 	pacs.port = 1; // nothing listens on port 1 here
 	pacs.timeout_s = 1;
-	std::vector<std::string> sent;
+	std::vector<dcm::Outbox::Sent> sent;
 	const facescan::Status s = box.flush(pacs, &sent);
 	assert_int_equal(s.code(), -ECONNREFUSED);
 	assert_int_equal(sent.size(), 0);

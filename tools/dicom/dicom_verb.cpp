@@ -147,7 +147,7 @@ static int send_main(int argc, char **argv)
 			s = dicom::parse_instance(bytes, &parsed);
 		std::string queued;
 		if (s.ok())
-			s = box.put(parsed.instance.sop_instance_uid, bytes, &queued);
+			s = box.put(parsed.instance.sop_instance_uid, bytes, "", &queued);
 		if (!s.ok())
 			s = Status::error(s.code(), std::string(argv[i]) + ": " + s.message());
 	}
@@ -155,10 +155,10 @@ static int send_main(int argc, char **argv)
 		std::fprintf(stderr, "facescan dicom send: %s\n", s.message().c_str());
 		return 1;
 	}
-	std::vector<std::string> sent;
+	std::vector<dicom::Outbox::Sent> sent;
 	s = box.flush(pacs, &sent);
-	for (const std::string &uid : sent)
-		std::printf("facescan dicom: sent %s to %s\n", uid.c_str(), pacs_text.c_str());
+	for (const dicom::Outbox::Sent &x : sent)
+		std::printf("facescan dicom: sent %s to %s\n", x.sop_instance_uid.c_str(), pacs_text.c_str());
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan dicom send: %s; %zu instance(s) wait in %s\n", s.message().c_str(),
 			     box.pending().size(), spool.c_str());
