@@ -6,48 +6,16 @@
 # DICOM spool, exit 3), started again, and the next send delivers it exactly once.
 set -u
 bin=${FACESCAN_BIN:?}/facescan
-orthanc=$(command -v Orthanc || echo /usr/sbin/Orthanc)
-[ -x "$orthanc" ] || { echo "SKIP: Orthanc is not installed (Debian package 'orthanc', tools/install-deps.sh)"; exit 77; }
 tmp=$(mktemp -d /tmp/facescan-orthanc.XXXXXX)
-pid=""
-stop_orthanc() {
-	[ -n "$pid" ] || return 0
-	kill "$pid" 2>/dev/null
-	i=0; while kill -0 "$pid" 2>/dev/null && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
-	kill -9 "$pid" 2>/dev/null
-	pid=""
-}
-trap 'stop_orthanc; rm -rf "$tmp"' EXIT
+. "$(dirname "$0")/orthanc.sh"
+trap 'orthanc_stop; rm -rf "$tmp"' EXIT
 fail=0
-
-# Two free loopback ports (the kernel picks them).
-set -- $(python3 -c 'import socket
-s=[socket.socket() for _ in range(2)]
-[x.bind(("127.0.0.1",0)) for x in s]
-print(*[x.getsockname()[1] for x in s])')
-http=$1 dimse=$2
-mkdir -p "$tmp/db"
-cat >"$tmp/orthanc.json" <<JSON
-{ "Name": "facescan-test", "StorageDirectory": "$tmp/db", "IndexDirectory": "$tmp/db",
-  "HttpPort": $http, "DicomPort": $dimse, "DicomAet": "TESTPACS", "DicomCheckCalledAet": true,
-  "RemoteAccessAllowed": false, "AuthenticationEnabled": false, "HttpServerEnabled": true,
-  "Plugins": [], "DicomModalities": {}, "ConcurrentJobs": 1 }
-JSON
-start_orthanc() {
-	"$orthanc" "$tmp/orthanc.json" >>"$tmp/orthanc.log" 2>&1 &
-	pid=$!
-	i=0
-	until rest /system >/dev/null 2>&1; do
-		i=$((i + 1))
-		if [ $i -gt 300 ] || ! kill -0 "$pid" 2>/dev/null; then
-			echo "FAIL: Orthanc did not come up"; tail -20 "$tmp/orthanc.log"; exit 1
-		fi
-		sleep 0.1
-	done
-}
-rest() { python3 -c 'import sys,urllib.request
-sys.stdout.buffer.write(urllib.request.urlopen("http://127.0.0.1:'"$http"'"+sys.argv[1], timeout=10).read())' "$1"; }
+orthanc_setup "$tmp"
+http=$ORTHANC_HTTP dimse=$ORTHANC_DIMSE
+rest() { orthanc_rest "$1"; }
 json_get() { python3 -c 'import sys,json; d=json.load(sys.stdin); print(eval(sys.argv[1]))' "$1"; }
+start_orthanc() { orthanc_start; }
+stop_orthanc() { orthanc_stop; }
 
 t0=$(date +%s.%N)
 start_orthanc
