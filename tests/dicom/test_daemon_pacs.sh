@@ -7,7 +7,7 @@
 set -u
 bin=${FACESCAN_BIN:?}
 tmp=$(mktemp -d /tmp/facescan-dpacs.XXXXXX)
-. "$(dirname "$0")/orthanc.sh"
+. "$(dirname "$0")/../../tools/orthanc.sh"
 DPID=""
 trap 'orthanc_stop; [ -n "$DPID" ] && kill "$DPID" 2>/dev/null && wait "$DPID" 2>/dev/null; rm -rf "$tmp"' EXIT
 fail=0

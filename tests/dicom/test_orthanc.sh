@@ -7,7 +7,7 @@
 set -u
 bin=${FACESCAN_BIN:?}/facescan
 tmp=$(mktemp -d /tmp/facescan-orthanc.XXXXXX)
-. "$(dirname "$0")/orthanc.sh"
+. "$(dirname "$0")/../../tools/orthanc.sh"
 trap 'orthanc_stop; rm -rf "$tmp"' EXIT
 fail=0
 orthanc_setup "$tmp"

@@ -1,4 +1,4 @@
-# Sourced by the DICOM tests: a real Orthanc (Debian's `orthanc`) on loopback ports the kernel
+# Sourced by the DICOM tests and tools/demo.sh: a real Orthanc (Debian's `orthanc`) on loopback ports the kernel
 # picks, with its own temporary configuration and storage under $1 (the test's temp dir).
 #   orthanc_setup DIR   config + free ports (sets ORTHANC_HTTP, ORTHANC_DIMSE, ORTHANC_AE)
 #   orthanc_start       starts it and waits until its REST API answers (exit 1 if it does not)
