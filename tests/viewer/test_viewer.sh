@@ -81,13 +81,16 @@ m = trimesh.load(sys.argv[1], force="mesh", process=False)
 v, n = m.vertices, m.vertex_normals
 lo, hi = v.min(0), v.max(0)
 c, size = (lo + hi) / 2, hi - lo
-ok = np.abs(n[:, 2]) > 0.85
-for i in np.where(ok)[0]:  # nothing in front of it within 3 mm across
+facing = np.abs(n[:, 2]) > 0.85
+def visible(i):  # nothing in front of it within 3 mm across
     d = np.hypot(v[:, 0] - v[i, 0], v[:, 1] - v[i, 1])
-    ok[i] = not np.any((d < 3) & (v[:, 2] > v[i, 2] + 0.5))
+    return not np.any((d < 3) & (v[:, 2] > v[i, 2] + 0.5))
 def pick(tx, ty):
-    cost = np.hypot(v[:, 0] - tx, v[:, 1] - ty) + np.where(ok, 0, 1e9)
-    return v[int(np.argmin(cost))]
+    cost = np.hypot(v[:, 0] - tx, v[:, 1] - ty) + np.where(facing, 0, 1e9)
+    for i in np.argsort(cost)[:200]:
+        if visible(i):
+            return v[i]
+    sys.exit("no visible front-facing vertex near (%.1f, %.1f)" % (tx, ty))
 a = pick(c[0] - 0.25 * size[0], c[1])
 b = pick(c[0] + 0.25 * size[0], c[1] - 0.15 * size[1])
 print(" ".join("%.4f" % x for x in list(a) + list(b)), "%.4f" % np.linalg.norm(a - b))
