@@ -99,5 +99,16 @@ if node "$tmp/validate.cjs" "$build/web/node_modules/gltf-validator" "$tmp/sheet
 else
 	echo "FAIL: glTF validator on sheet.glb:"; cat "$tmp/vlog"; fail=1
 fi
+# Draco's own decoder (Debian's `draco` CLI, tools/install-deps.sh) opens the .drc.
+if ! command -v draco_decoder >/dev/null 2>&1; then
+	echo "FAIL: draco_decoder missing (Debian package 'draco')"; fail=1
+else
+	if draco_decoder -i "$tmp/sheet.drc" -o "$tmp/drc.ply" >"$tmp/dlog" 2>&1 &&
+		grep -a -q "element face 2262" "$tmp/drc.ply"; then
+		echo "ok: sheet.drc opens in draco_decoder: 2262 faces"
+	else
+		echo "FAIL: draco_decoder on sheet.drc"; cat "$tmp/dlog"; fail=1
+	fi
+fi
 ls -l "$tmp" | awk '/sheet|out/ {print "  " $5 " bytes  " $9}'
 exit $fail
