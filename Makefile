@@ -34,7 +34,7 @@ CFLAGS   := -std=gnu11 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
 CXXFLAGS := -std=gnu++17 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
 OPENCV_LIBS := -lopencv_calib3d -lopencv_features2d -lopencv_flann -lopencv_aruco \
 	-lopencv_imgcodecs -lopencv_imgproc -lopencv_core
-LDLIBS := $(OPENCV_LIBS) -ldraco -lembree3 -lcamera -lcamera-base -lgpiod -lsystemd -lpthread -lm
+LDLIBS := $(OPENCV_LIBS) -ldraco -lassimp -ldcmnet -ldcmdata -loflog -lofstd -lcpp-httplib -lcrypto -lembree3 -lcamera -lcamera-base -lgpiod -lsystemd -lpthread -lm
 LDFLAGS := $(OPTFLAGS)
 
 # ---- sources -------------------------------------------------------------------------

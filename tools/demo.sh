@@ -6,7 +6,9 @@
 #                      the daemon's fake cameras
 #   facescand          booth mode; the simulated button press goes through the firmware
 #   reconstruction     host/recon's pipeline when facescand accepts it, else the fake mesh
-#   output             ./out/share/<patient>/<UTC time>_<scan-id>.{drc,png,json}
+#   output             ./out/share/<patient>/<UTC time>_<scan-id>.{drc,png,glb,_thumb.png,stl,dcm,json}
+#   PACS               a local Orthanc this script starts (when installed) receives the DICOM instance
+#   viewer             `facescan view` is checked on the share and its URL printed
 #
 # Prints what ran, what stood in for a missing part, and a summary. Exits 0 when the parts that
 # exist work; non-zero only when one of them fails.
@@ -14,8 +16,10 @@ set -u
 bin=${1:-build/bin}
 out=$(pwd)/out
 patient=DEMO-0001
-FWPID= DPID=
+FWPID= DPID= VPID=
+. "$(dirname "$0")/orthanc.sh"
 cleanup() {
+	orthanc_stop
 	[ -n "$DPID" ] && kill "$DPID" 2>/dev/null
 	[ -n "$FWPID" ] && kill "$FWPID" 2>/dev/null
 	wait 2>/dev/null
@@ -69,7 +73,20 @@ fi
 # ---- 2. the cameras: facescand renders through the camera driver's simulated backend ------------
 # (tools/sim behind drivers/camera's camera_sim.h), or uses its fake cameras when that is missing.
 
-# ---- 3. facescand -----------------------------------------------------------------------------
+# ---- 3. a PACS: a local Orthanc on loopback, its storage under out/ ----------------------------
+pacs_conf=""
+if command -v Orthanc >/dev/null 2>&1 || [ -x /usr/sbin/Orthanc ]; then
+	rm -rf "$out/orthanc" && mkdir -p "$out/orthanc"
+	orthanc_setup "$out/orthanc" && orthanc_start
+	pacs_conf="pacs_called_ae = $ORTHANC_AE
+pacs_host = 127.0.0.1
+pacs_port = $ORTHANC_DIMSE"
+	ran="$ran\n  PACS:            Orthanc $(orthanc_rest /system | sed -n 's/.*"Version" : "\([^"]*\)".*/\1/p') on 127.0.0.1:$ORTHANC_DIMSE (AE $ORTHANC_AE, REST $ORTHANC_HTTP)"
+else
+	stood_in="$stood_in\n  PACS:            none (Debian's orthanc is not installed): the instance stays on the share"
+fi
+
+# ---- 4. facescand -----------------------------------------------------------------------------
 write_conf() { # cameras recon
 	cat >"$out/run/facescand.conf" <<-CONF
 	mode = booth
@@ -82,6 +99,9 @@ write_conf() { # cameras recon
 	sim_scene = default
 	min_free_mb = 0
 	mcu_timeout_ms = 5000
+	output_stl = true
+	output_dicom = true
+	$pacs_conf
 	CONF
 }
 start_daemon() {
@@ -115,7 +135,7 @@ connected*) ;;
 esac
 ran="$ran\n  facescand:       booth mode, MCU $mcu, cameras $cameras, reconstruction $recon"
 
-# ---- 4. a button press -------------------------------------------------------------------------
+# ---- 5. a button press -------------------------------------------------------------------------
 say ""
 say "scan of $patient: arming, then pressing the booth button"
 case $fw_kind in
@@ -142,7 +162,23 @@ state=$(fs last --json | sed -n 's/^  "state": "\([a-z]*\)".*/\1/p')
 [ "$state" = delivered ] || die "the scan did not reach the share (state: $state)"
 sed -n 's/^.*scan [0-9a-f]*: \(\[[1-3]\/3\].*\)$/  progress:      \1/p' "$out/facescand.log"
 
-# ---- 5. summary -------------------------------------------------------------------------------
+# ---- 6. the viewer on the share ----------------------------------------------------------------
+glb=$(ls "$out"/share/"$patient"/*.glb 2>/dev/null | head -1)
+view_url=""
+if [ -n "$glb" ] && ./tools/install-web-deps.sh web "$(dirname "$bin")" >/dev/null 2>&1; then
+	"$bin/facescan" view "$out/share" --port 0 >"$out/run/view.log" 2>&1 &
+	VPID=$!
+	for _ in $(seq 50); do grep -q http "$out/run/view.log" && break; sleep 0.1; done
+	base_url=$(sed -n 's/.*\(http[^ ]*\)\/$/\1/p' "$out/run/view.log")
+	rel="/share/$patient/$(basename "$glb")"
+	code=$(curl -s -o /dev/null -w '%{http_code}' "$base_url$rel" 2>/dev/null)
+	kill "$VPID" 2>/dev/null; wait "$VPID" 2>/dev/null
+	[ "$code" = 200 ] && view_url="view.html?mesh=$rel" &&
+		ran="$ran\n  viewer:          facescan view served the scan's .glb (HTTP $code)"
+fi
+[ -z "$view_url" ] && stood_in="$stood_in\n  viewer:          not checked (no .glb, or three.js could not be installed from npm)"
+
+# ---- 7. summary -------------------------------------------------------------------------------
 meta=$(ls "$out"/share/"$patient"/*.json | head -1)
 num() { sed -n "s/^ *\"$1\": \([0-9.]*\),\{0,1\}$/\1/p" "$meta" | head -1; }
 top() { sed -n "s/^ \"$1\": \([0-9.]*\),\{0,1\}$/\1/p" "$meta" | head -1; } # top-level key
@@ -160,6 +196,26 @@ if [ -n "$acc" ]; then
 else
 	say "  accuracy:      not measured (needs simulated cameras, for the ground truth, and the real reconstruction)"
 fi
+python3 - "$meta" <<'PY'
+import json, sys
+m = json.load(open(sys.argv[1]))
+ms = m.get("output_ms", {})
+role_ms = {"gltf": "glb", "thumbnail": "thumbnail", "stl": "stl", "obj": "obj", "obj-material": "obj", "dicom": "dicom"}
+print("  files:")
+for f in m.get("manifest", []):
+    t = ms.get(role_ms.get(f["role"], ""), None)
+    print("    %-12s %9d bytes  %s  %s" % (f["role"], f["bytes"], f["sha256"][:16] + "...",
+                                          "written in %.0f ms" % t if t is not None else "from the reconstruction"))
+d = m.get("dicom", {})
+if d:
+    p = d.get("pacs", {})
+    print("  DICOM:         %s (SOP class %s)%s" % (d.get("share", "-"), d.get("sop_class_uid"),
+          ", PACS %s: %s" % (p.get("ae"), p.get("state")) if p else ""))
+for k, v in m.get("output_errors", {}).items():
+    print("  output error:  %s: %s" % (k, v))
+PY
+[ -n "$ORTHANC_PID" ] && say "  Orthanc holds: $(orthanc_count) instance(s)"
+[ -n "$view_url" ] && say "  viewer:        facescan view $out/share --port 8080  ->  http://127.0.0.1:8080/$view_url"
 say ""
 printf "what ran:$ran\n"
 [ -n "$stood_in" ] && printf "stand-ins for parts not on main yet:$stood_in\n"

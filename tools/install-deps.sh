@@ -7,7 +7,9 @@ PKGS="build-essential pkg-config cmake
 libopencv-dev libopencv-contrib-dev libeigen3-dev libcamera-dev libgpiod-dev
 libdraco-dev libcmocka-dev libembree-dev nlohmann-json3-dev libsystemd-dev
 gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm
-clang libclang-rt-14-dev python3"
+clang libclang-rt-14-dev python3
+draco libtinygltf-dev libassimp-dev libdcmtk-dev libcpp-httplib-dev libssl-dev zlib1g-dev libbrotli-dev
+orthanc chromium"
 
 missing=""
 for p in $PKGS; do

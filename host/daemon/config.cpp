@@ -1,5 +1,6 @@
 #include "daemon/config.hpp"
 #include "daemon/patient_id.hpp"
+#include "dicom/dicom.hpp"
 
 #include <cerrno>
 #include <climits>
@@ -71,6 +72,28 @@ Setter word_in(std::string Config::*field, std::set<std::string> allowed)
 		c.*field = v;
 		return "";
 	};
+}
+
+// A word of printable ASCII (no spaces): AE titles, host names, addresses. Checked further
+// where the set is complete (the PACS as a whole, in parse_config).
+Setter text_in(std::string Config::*field, bool may_be_empty)
+{
+	return [field, may_be_empty](Config &c, const std::string &v) -> std::string {
+		if (v.empty() && !may_be_empty)
+			return "empty value";
+		if (v.size() > 255)
+			return "longer than 255 characters";
+		for (char ch : v)
+			if (static_cast<unsigned char>(ch) <= 0x20 || static_cast<unsigned char>(ch) >= 0x7f)
+				return "'" + v + "' holds a space or a character outside printable ASCII";
+		c.*field = v;
+		return "";
+	};
+}
+
+Getter bool_of(bool Config::*field)
+{
+	return [field](const Config &c) { return std::string(c.*field ? "true" : "false"); };
 }
 
 Getter str_of(std::string Config::*field)
@@ -216,6 +239,29 @@ const std::vector<Key> &keys()
 		 int_in(&Config::test_delay_write_ms, 0, 60000), int_of(&Config::test_delay_write_ms)},
 		{"test_delay_deliver_ms", "fault tests only: pause between delivered files",
 		 int_in(&Config::test_delay_deliver_ms, 0, 60000), int_of(&Config::test_delay_deliver_ms)},
+		{"output_glb", "write <base>.glb (glTF binary, Draco, texture embedded) with each scan",
+		 bool_in(&Config::output_glb), bool_of(&Config::output_glb)},
+		{"output_thumbnail", "write <base>_thumb.png (front and +-45 degree renders)",
+		 bool_in(&Config::output_thumbnail), bool_of(&Config::output_thumbnail)},
+		{"output_stl", "write <base>.stl (binary STL, mm)", bool_in(&Config::output_stl),
+		 bool_of(&Config::output_stl)},
+		{"output_obj", "write <base>.obj + <base>.mtl (texture <base>.png, mm)", bool_in(&Config::output_obj),
+		 bool_of(&Config::output_obj)},
+		{"output_dicom", "write <base>.dcm (DICOM Encapsulated STL) to the share",
+		 bool_in(&Config::output_dicom), bool_of(&Config::output_dicom)},
+		{"pacs_called_ae", "AE title of the PACS that receives every scan by C-STORE; empty: none",
+		 text_in(&Config::pacs_called_ae, true), str_of(&Config::pacs_called_ae)},
+		{"pacs_host", "host name or address of the PACS", text_in(&Config::pacs_host, true),
+		 str_of(&Config::pacs_host)},
+		{"pacs_port", "DICOM port of the PACS", int_in(&Config::pacs_port, 1, 65535), int_of(&Config::pacs_port)},
+		{"pacs_calling_ae", "our AE title towards the PACS", text_in(&Config::pacs_calling_ae, false),
+		 str_of(&Config::pacs_calling_ae)},
+		{"pacs_timeout_s", "connect / association / message timeout towards the PACS",
+		 int_in(&Config::pacs_timeout_s, 1, 600), int_of(&Config::pacs_timeout_s)},
+		{"viewer_port", "serve the web viewer of the share on this port; 0: off",
+		 int_in(&Config::viewer_port, 0, 65535), int_of(&Config::viewer_port)},
+		{"viewer_bind", "address the viewer listens on (127.0.0.1: this machine only)",
+		 text_in(&Config::viewer_bind, false), str_of(&Config::viewer_bind)},
 	};
 	return table;
 }
@@ -285,6 +331,12 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 	if (c.recon_timeout_ms >= c.stage_timeout_ms)
 		return Status::error(EINVAL, name + ": recon_timeout_ms must be below stage_timeout_ms, or the watchdog "
 					     "restarts the daemon before the worker is killed");
+	if (!c.pacs_called_ae.empty()) {
+		dicom::Pacs pacs{c.pacs_calling_ae, c.pacs_called_ae, c.pacs_host, c.pacs_port, c.pacs_timeout_s};
+		Status p = dicom::validate_pacs(pacs);
+		if (!p.ok())
+			return Status::error(EINVAL, name + ": pacs: " + p.message());
+	}
 	if (c.share_dir == c.spool_dir)
 		return Status::error(EINVAL, name + ": share_dir and spool_dir must differ");
 	*ret_config = c;

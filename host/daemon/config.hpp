@@ -51,6 +51,19 @@ struct Config {
 	std::string recon_worker;                // the facescan CLI (recon verb = the worker); empty: beside facescand
 	int test_delay_write_ms = 0;             // fault tests only: pause between spooled files
 	int test_delay_deliver_ms = 0;           // fault tests only: pause between delivered files
+	// What a scan writes besides .drc/.png/.json (host/daemon/clinic_output.cpp), and where to.
+	bool output_glb = true;                  // <base>.glb: glTF binary for browsers and the viewer
+	bool output_thumbnail = true;            // <base>_thumb.png: front and ±45° renders
+	bool output_stl = false;                 // <base>.stl: binary STL, mm
+	bool output_obj = false;                 // <base>.obj + .mtl (texture: <base>.png)
+	bool output_dicom = false;               // <base>.dcm on the share (Encapsulated STL)
+	std::string pacs_called_ae;              // C-STORE every scan to this PACS; empty: none
+	std::string pacs_host;
+	int pacs_port = 104;
+	std::string pacs_calling_ae = "FACESCAN";
+	int pacs_timeout_s = 5;
+	int viewer_port = 0;                     // serve the web viewer on this port; 0: off
+	std::string viewer_bind = "127.0.0.1";
 };
 
 /// Parses the text of a config file on top of the defaults. `name` labels the errors

@@ -1,4 +1,5 @@
 #include "daemon/control.hpp"
+#include "dicom/dicom.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -60,6 +61,16 @@ Status parse_request(const std::string &line, Request *ret_request)
 			if (!it->is_string())
 				return Status::error(EINVAL, "\"patient\" must be a string");
 			r.patient = it->get<std::string>();
+		} else if (r.cmd == Request::Cmd::scan && (k == "name" || k == "accession" || k == "study_uid")) {
+			if (!it->is_string())
+				return Status::error(EINVAL, "\"" + k + "\" must be a string");
+			const std::string v = it->get<std::string>();
+			Status s = k == "name" ? dicom::validate_patient_name(v)
+				   : k == "accession" ? dicom::validate_accession(v)
+						      : dicom::validate_uid(v);
+			if (!s.ok())
+				return s;
+			(k == "name" ? r.name : k == "accession" ? r.accession : r.study_uid) = v;
 		} else if (r.cmd == Request::Cmd::scan && k == "wait") {
 			if (!it->is_boolean())
 				return Status::error(EINVAL, "\"wait\" must be true or false");

@@ -36,10 +36,14 @@ struct Request {
 	enum class Cmd { scan, status, last, cancel, button } cmd = Cmd::status;
 	std::string patient;
 	bool wait = false;
+	// DICOM fields of a scan request (host/dicom's rules); empty: not given.
+	std::string name, accession, study_uid;
 };
 
 /// Parses one request line. -EINVAL with a message for malformed JSON, a non-object, an unknown
-/// or missing "cmd", wrong field types, or unknown fields. The patient id is checked separately.
+/// or missing "cmd", wrong field types, or unknown fields, and for a scan's "name", "accession"
+/// and "study_uid" that break DICOM's rules (dicom::validate_*). The patient id is checked
+/// separately.
 Status parse_request(const std::string &line, Request *ret_request);
 
 } // namespace facescan::daemon

@@ -5,6 +5,8 @@
 #include "daemon/control.hpp"
 #include "daemon/log.hpp"
 #include "daemon/output.hpp"
+#include "daemon/clinic_output.hpp"
+#include "viewer/viewer.hpp"
 #include "daemon/patient_id.hpp"
 #include "daemon/spool.hpp"
 
@@ -144,6 +146,7 @@ struct Daemon::Impl {
 	Clock::time_point next_ping = Clock::now();
 	bool mcu_with_worker = false;
 
+	viewer::Server viewer; // the web viewer of the share, when viewer_port is set
 	std::thread worker;
 	bool worker_running = false;
 	bool worker_is_delivery = false;
@@ -464,6 +467,11 @@ struct Daemon::Impl {
 			reply_error(c, s.code() == -EBUSY ? "busy" : "unavailable", s.message());
 			return;
 		}
+		// The request's DICOM fields (checked by parse_request) ride with the scan's record.
+		for (const auto &[k, v] : {std::pair{"dicom_name", &req.name}, {"dicom_accession", &req.accession},
+					   {"dicom_study_uid", &req.study_uid}})
+			if (!v->empty())
+				current[k] = *v;
 		std::string id = sid();
 		if (req.wait)
 			c.wait_scan = id;
@@ -614,6 +622,7 @@ struct Daemon::Impl {
 	{
 		std::vector<Delivered> out;
 		Status s = spool.deliver(&out, cfg.test_delay_deliver_ms);
+		clinic::retry_pacs(cfg); // after the share: a late send can then record itself in the metadata
 		Msg m{Msg::Kind::delivered, 0, "", false, json::array()};
 		m.data = json::array();
 		for (const Delivered &d : out)
@@ -696,8 +705,9 @@ struct Daemon::Impl {
 			     {"faces", out.faces},
 			     {"quality", out.quality},
 			     {"files", {{"mesh", base + ".drc"}, {"texture", base + ".png"}}}};
-		std::vector<SpoolFile> files = {{base + ".drc", out.drc}, {base + ".png", out.png},
-						{base + ".json", meta.dump(1) + "\n"}};
+		std::vector<SpoolFile> files = {{base + ".drc", out.drc}, {base + ".png", out.png}};
+		clinic::add_outputs(cfg, out, rec, &files, &meta); // .glb, thumbnail, .stl/.obj, DICOM, manifest
+		files.push_back({base + ".json", meta.dump(1) + "\n"});
 		s = spool.put(base, id, rec["patient_id"], files, cfg.test_delay_write_ms);
 		if (!s.ok()) {
 			post({Msg::Kind::failed, 0, "spool: " + s.message(), false, {{"stage", "writing"}}});
@@ -894,7 +904,8 @@ struct Daemon::Impl {
 		}
 		if (sm.state() == State::error && now >= next_recover)
 			try_recover();
-		if (!sm.busy() && !worker_running && now >= next_delivery && spool.pending() > 0) {
+		if (!sm.busy() && !worker_running && now >= next_delivery &&
+		    (spool.pending() > 0 || clinic::pacs_pending(cfg))) {
 			next_delivery = now + std::chrono::milliseconds(cfg.spool_retry_ms);
 			start_worker(true);
 		}
@@ -1119,6 +1130,20 @@ Status Daemon::start()
 		log(LOG_INFO, "MCU connected: %s", d.be.mcu->firmware_version().c_str());
 	}
 	d.set_state_pub();
+	if (d.cfg.viewer_port > 0) { // a viewer that cannot start is logged; scanning goes on
+		viewer::Options vo;
+		vo.share_dir = d.cfg.share_dir;
+		vo.bind = d.cfg.viewer_bind;
+		vo.port = d.cfg.viewer_port;
+		int port = 0;
+		Status v = viewer::find_web_dir(&vo.web_dir);
+		if (v.ok())
+			v = d.viewer.start(vo, &port);
+		if (v.ok())
+			log(LOG_INFO, "viewer: http://%s:%d/", vo.bind.c_str(), port);
+		else
+			log(LOG_WARNING, "viewer: %s", v.message().c_str());
+	}
 	log(LOG_INFO, "facescand %s serving %s (%s mode, cameras: %s, reconstruction: %s)", version(),
 	    d.cfg.socket_path.c_str(), mode_name(d.cfg.mode), d.be.cameras->backend_name().c_str(),
 	    d.be.recon->backend_name().c_str());

@@ -1,5 +1,6 @@
 // Draco encode/decode of recon::Mesh. Positions are float mm; the quantisation step is the
 // bounding box's longest side / (2^position_bits - 1).
+#include "mesh_io/draco_ids.hpp"
 #include "mesh_io/mesh_check.hpp"
 #include "mesh_io/mesh_io.hpp"
 
@@ -37,6 +38,13 @@ int add_attribute(draco::Mesh *dm, draco::GeometryAttribute::Type type, int comp
 
 Status encode_draco(const recon::Mesh &mesh, const DracoOptions &options, std::vector<char> *ret_bytes)
 {
+	DracoAttributeIds ids;
+	return encode_draco_ids(mesh, options, ret_bytes, &ids);
+}
+
+Status encode_draco_ids(const recon::Mesh &mesh, const DracoOptions &options, std::vector<char> *ret_bytes,
+			DracoAttributeIds *ret_ids)
+{
 	Status s = check_mesh(mesh);
 	if (!s.ok())
 		return s;
@@ -45,17 +53,21 @@ Status encode_draco(const recon::Mesh &mesh, const DracoOptions &options, std::v
 	const size_t n = mesh.positions.size();
 	draco::Mesh dm;
 	dm.set_num_points(uint32_t(n));
-	add_attribute(&dm, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32, false, mesh.positions);
+	DracoAttributeIds ids;
+	ids.position = add_attribute(&dm, draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32, false,
+				     mesh.positions);
 	if (!mesh.uvs.empty())
-		add_attribute(&dm, draco::GeometryAttribute::TEX_COORD, 2, draco::DT_FLOAT32, false, mesh.uvs);
+		ids.uv = add_attribute(&dm, draco::GeometryAttribute::TEX_COORD, 2, draco::DT_FLOAT32, false,
+				       mesh.uvs);
 	if (options.normals && !mesh.normals.empty())
-		add_attribute(&dm, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32, false, mesh.normals);
+		ids.normal = add_attribute(&dm, draco::GeometryAttribute::NORMAL, 3, draco::DT_FLOAT32, false,
+					   mesh.normals);
 	if (!mesh.colours.empty()) {
 		// recon keeps OpenCV's BGR; files carry RGB.
 		std::vector<cv::Vec3b> rgb(mesh.colours.size());
 		for (size_t i = 0; i < rgb.size(); ++i)
 			rgb[i] = cv::Vec3b(mesh.colours[i][2], mesh.colours[i][1], mesh.colours[i][0]);
-		add_attribute(&dm, draco::GeometryAttribute::COLOR, 3, draco::DT_UINT8, true, rgb);
+		ids.colour = add_attribute(&dm, draco::GeometryAttribute::COLOR, 3, draco::DT_UINT8, true, rgb);
 	}
 	for (const cv::Vec3i &t : mesh.triangles) {
 		draco::Mesh::Face f;
@@ -75,10 +87,20 @@ Status encode_draco(const recon::Mesh &mesh, const DracoOptions &options, std::v
 	if (!ds.ok())
 		return Status::error(-EIO, std::string("draco encode: ") + ds.error_msg());
 	ret_bytes->assign(buf.data(), buf.data() + buf.size());
+	// The encoder keeps attribute ids (they are in the bitstream as unique ids).
+	for (int *id : {&ids.position, &ids.uv, &ids.normal, &ids.colour})
+		if (*id >= 0)
+			*id = int(dm.attribute(*id)->unique_id());
+	*ret_ids = ids;
 	return {};
 }
 
 Status decode_draco(const void *data, size_t size, recon::Mesh *ret_mesh)
+{
+	return decode_draco_ids(data, size, nullptr, ret_mesh);
+}
+
+Status decode_draco_ids(const void *data, size_t size, const DracoAttributeIds *ids, recon::Mesh *ret_mesh)
 {
 	draco::DecoderBuffer db;
 	db.Init(static_cast<const char *>(data), size);
@@ -95,12 +117,21 @@ Status decode_draco(const void *data, size_t size, recon::Mesh *ret_mesh)
 
 	recon::Mesh mesh;
 	const uint32_t n = dm->num_points();
-	const draco::PointAttribute *pos = dm->GetNamedAttribute(draco::GeometryAttribute::POSITION);
-	if (!pos)
-		return Status::error(-EINVAL, "Draco mesh has no positions");
-	const draco::PointAttribute *uv = dm->GetNamedAttribute(draco::GeometryAttribute::TEX_COORD);
-	const draco::PointAttribute *nor = dm->GetNamedAttribute(draco::GeometryAttribute::NORMAL);
-	const draco::PointAttribute *col = dm->GetNamedAttribute(draco::GeometryAttribute::COLOR);
+	// glTF names attributes by unique id; a plain .drc by type.
+	auto find = [&](draco::GeometryAttribute::Type type, int unique_id) -> const draco::PointAttribute * {
+		if (!ids)
+			return dm->GetNamedAttribute(type);
+		return unique_id < 0 ? nullptr : dm->GetAttributeByUniqueId(uint32_t(unique_id));
+	};
+	const draco::PointAttribute *pos = find(draco::GeometryAttribute::POSITION, ids ? ids->position : -1);
+	if (!pos || pos->num_components() != 3)
+		return Status::error(-EINVAL, "Draco mesh has no 3-component positions");
+	const draco::PointAttribute *uv = find(draco::GeometryAttribute::TEX_COORD, ids ? ids->uv : -1);
+	const draco::PointAttribute *nor = find(draco::GeometryAttribute::NORMAL, ids ? ids->normal : -1);
+	const draco::PointAttribute *col = find(draco::GeometryAttribute::COLOR, ids ? ids->colour : -1);
+	if ((uv && uv->num_components() != 2) || (nor && nor->num_components() != 3) ||
+	    (col && col->num_components() < 3))
+		return Status::error(-EINVAL, "Draco mesh has attributes of the wrong size");
 	mesh.positions.resize(n);
 	if (uv)
 		mesh.uvs.resize(n);

@@ -2,6 +2,7 @@
 // time, socket robustness, and the faults (MCU unplugged mid-scan, camera timeout, frames from
 // different triggers, a failing reconstruction) with recovery. Log lines are captured to check
 // that no patient data reaches them.
+#include "daemon/clinic_output.hpp"
 #include "daemon/client.hpp"
 #include "daemon/daemon.hpp"
 #include "daemon/fake_backends.hpp"
@@ -210,8 +211,9 @@ static void test_scan_over_socket(void **)
 		if (p.value("event", "") == "progress")
 			stages++;
 	assert_true(stages >= 3);
-	// <share>/<patient>/<UTC time>_<scan-id>.{drc,png,json}
-	assert_int_equal(scan["files"].size(), 3);
+	// <share>/<patient>/<UTC time>_<scan-id>.{drc,png,glb,_thumb.png,json} (glb and thumbnail
+	// by default; the metadata last)
+	assert_int_equal(scan["files"].size(), 5);
 	const std::string drc = scan["files"][0];
 	assert_non_null(std::strstr(drc.c_str(), (rig.cfg.share_dir + "/PAT-4711/").c_str()));
 	const std::string stem = drc.substr(drc.rfind('/') + 1);
@@ -224,8 +226,17 @@ static void test_scan_over_socket(void **)
 	assert_true(v > 1000);
 	std::string png = slurp(scan["files"][1]);
 	assert_true(png.size() > 8 && png.compare(1, 3, "PNG") == 0);
-	json meta = json::parse(slurp(scan["files"][2]));
+	json meta = json::parse(slurp(scan["files"][4]));
 	assert_string_equal(meta["scan_id"].get<std::string>().c_str(), id.c_str());
+	// The manifest names every other file with its size and sha256, and they match the share.
+	assert_int_equal(meta["manifest"].size(), 4);
+	for (const json &m : meta["manifest"]) {
+		const std::string body = slurp(rig.cfg.share_dir + "/PAT-4711/" + m["file"].get<std::string>());
+		assert_int_equal(body.size(), m["bytes"].get<size_t>());
+		assert_string_equal(facescan::daemon::clinic::sha256_hex(body).c_str(), m["sha256"].get<std::string>().c_str());
+	}
+	const std::string glb = slurp(drc.substr(0, drc.size() - 4) + ".glb");
+	assert_true(glb.size() > 12 && glb.compare(0, 4, "glTF") == 0);
 	assert_string_equal(meta["patient_id"].get<std::string>().c_str(), "PAT-4711");
 	assert_true(meta["stage_ms"].contains("capture") && meta["stage_ms"].contains("reconstruct"));
 	assert_int_equal(meta["trigger_report"]["sequence"].get<int>(), 1);

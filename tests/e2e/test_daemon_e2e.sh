@@ -85,7 +85,7 @@ check "armed" wait_state armed 30
 kill -USR1 "$FWPID"   # the firmware's booth button (debounced in the firmware)
 wait "$SCAN"; rc=$?
 check "scan by request + button exits 0" [ "$rc" -eq 0 ]
-check "three files for E2E-1" [ "$(visible_files E2E-1)" -eq 3 ]
+check "five files for E2E-1 (.drc .png .glb _thumb.png .json)" [ "$(visible_files E2E-1)" -eq 5 ]
 drc=$(ls "$T"/share/E2E-1/*.drc 2>/dev/null | head -1)
 check "mesh is named <UTC>_<scan-id>.drc" sh -c "basename '$drc' | grep -Eq '^[0-9]{8}T[0-9]{6}Z_[0-9a-f]{12}\.drc$'"
 check "mesh is Draco" sh -c "head -c 5 '$drc' | grep -q DRACO"
@@ -97,7 +97,7 @@ kill -USR1 "$FWPID"
 sleep 0.3
 check "walk-in scan done" wait_state idle 50
 sleep 0.3
-check "walk-in scan delivered" [ "$(visible_files walk-in)" -eq 3 ]
+check "walk-in scan delivered" [ "$(visible_files walk-in)" -eq 5 ]
 
 # ---- MCU unplugged mid-scan ----
 stop_daemon
@@ -125,10 +125,10 @@ check "scan reported spooled" grep -q ": spooled" "$T/spool.out"
 check "share root not recreated" [ ! -e "$T/share" ]
 check "status counts it" sh -c "\"$bin/facescan\" status --json | grep -q '\"spool_pending\": 1'"
 mv "$T/share.away" "$T/share"
-for _ in $(seq 50); do [ "$(visible_files SPOOL-1)" -eq 3 ] && break; sleep 0.1; done
-check "spooled scan delivered when the share is back" [ "$(visible_files SPOOL-1)" -eq 3 ]
+for _ in $(seq 50); do [ "$(visible_files SPOOL-1)" -eq 5 ] && break; sleep 0.1; done
+check "spooled scan delivered when the share is back" [ "$(visible_files SPOOL-1)" -eq 5 ]
 sleep 0.6
-check "delivered once" [ "$(visible_files SPOOL-1)" -eq 3 ]
+check "delivered once" [ "$(visible_files SPOOL-1)" -eq 5 ]
 check "last says delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered'"
 check "spool empty" [ -z "$(ls "$T/spool/queue")" ]
 stop_daemon
@@ -167,11 +167,11 @@ sleep 0.5
 for _ in $(seq 50); do [ "$(visible_files KILL-2)" -ge 1 ] && break; sleep 0.1; done
 kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
 n=$(visible_files KILL-2)
-check "mid-delivery: some but not all files (got $n)" [ "$n" -ge 1 ] && [ "$n" -lt 3 ]
+check "mid-delivery: some but not all files (got $n)" [ "$n" -ge 1 ] && [ "$n" -lt 5 ]
 check "no metadata before the mesh is complete" [ -z "$(ls "$T"/share/KILL-2/*.json 2>/dev/null)" ]
 start_daemon </dev/null
-for _ in $(seq 50); do [ "$(visible_files KILL-2)" -eq 3 ] && break; sleep 0.1; done
-check "delivery completed after restart" [ "$(visible_files KILL-2)" -eq 3 ]
+for _ in $(seq 50); do [ "$(visible_files KILL-2)" -eq 5 ] && break; sleep 0.1; done
+check "delivery completed after restart" [ "$(visible_files KILL-2)" -eq 5 ]
 for _ in $(seq 30); do fs last | grep -q 'patient: *KILL-2' && break; sleep 0.1; done
 check "last shows the redelivered scan, delivered" sh -c "\"$bin/facescan\" last | grep -q 'patient: *KILL-2' && \"$bin/facescan\" last | grep -q ': delivered'"
 check "no temp file left on the share" [ "$(hidden_files)" -eq 0 ]

@@ -35,6 +35,6 @@ echo "garbage" >"$tmp/bad.drc"
 "$bin" convert "$tmp/bad.drc" "$tmp/out.ply" >"$tmp/log" 2>&1; rc=$?
 if [ $rc -eq 1 ] && grep -q "bad.drc" "$tmp/log" && [ ! -e "$tmp/out.ply" ]; then echo "ok: corrupt input: $(cat "$tmp/log")"
 else echo "FAIL: corrupt input: exit $rc"; cat "$tmp/log"; fail=1; fi
-"$bin" convert "$tmp/a.ply" "$tmp/out.obj" >/dev/null 2>&1; rc=$?
+"$bin" convert "$tmp/a.ply" "$tmp/out.xyz" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: unknown extension is exit 2" || { echo "FAIL: unknown extension: exit $rc"; fail=1; }
 exit $fail

@@ -19,6 +19,9 @@ int simulate_main(int argc, char **argv);
 int evaluate_main(int argc, char **argv);
 int calibrate_main(int argc, char **argv);
 int convert_main(int argc, char **argv);
+int dicom_main(int argc, char **argv);
+int view_main(int argc, char **argv);
+int thumbnail_main(int argc, char **argv);
 } // namespace facescan::cli
 
 static const Verb verbs[] = {
@@ -31,7 +34,10 @@ static const Verb verbs[] = {
 	{"simulate", "render a capture set of the simulated booth", facescan::cli::simulate_main},
 	{"evaluate", "compare a reconstructed mesh with a simulated set's ground truth", facescan::cli::evaluate_main},
 	{"calibrate", "calibrate the cameras from images of a chessboard or ChArUco board", facescan::cli::calibrate_main},
-	{"convert", "convert a mesh between Draco (.drc) and PLY (.ply)", facescan::cli::convert_main},
+	{"convert", "convert a mesh between .drc .ply .glb .obj .stl", facescan::cli::convert_main},
+	{"dicom", "a mesh as a DICOM Encapsulated STL instance; C-STORE to the PACS", facescan::cli::dicom_main},
+	{"view", "serve the web viewer for a share or one scan on localhost", facescan::cli::view_main},
+	{"thumbnail", "render a mesh with the project's ray caster, framed as the viewer does", facescan::cli::thumbnail_main},
 };
 
 static void usage(FILE *out)

@@ -1,6 +1,7 @@
 // facescan scan --patient ID: asks facescand for a scan and follows it to the end.
 #include "daemon/client.hpp"
 #include "daemon/patient_id.hpp"
+#include "dicom/dicom.hpp"
 #include "daemon/report_text.hpp"
 
 #include <cstdio>
@@ -19,7 +20,12 @@ int scan_main(int argc, char **argv)
 				      {"timeout", required_argument, nullptr, 't'},
 				      {"press", no_argument, nullptr, 'b'},
 				      {"help", no_argument, nullptr, 'h'},
+				      {"name", required_argument, nullptr, 'N'},
+				      {"accession", required_argument, nullptr, 'A'},
+				      {"study-uid", required_argument, nullptr, 'U'},
 				      {nullptr, 0, nullptr, 0}};
+	std::string name, accession, study_uid;
+	bool study_uid_given = false;
 	std::string patient, sock = daemon::default_socket_path();
 	bool as_json = false, wait = true, press = false;
 	int timeout_s = 600;
@@ -32,6 +38,16 @@ int scan_main(int argc, char **argv)
 			break;
 		case 's':
 			sock = optarg;
+			break;
+		case 'N':
+			name = optarg;
+			break;
+		case 'A':
+			accession = optarg;
+			break;
+		case 'U':
+			study_uid = optarg;
+			study_uid_given = true;
 			break;
 		case 'j':
 			as_json = true;
@@ -50,10 +66,16 @@ int scan_main(int argc, char **argv)
 			}
 			break;
 		case 'h':
-			std::printf("usage: facescan scan --patient ID [--no-wait] [--press] [--json] [--socket PATH] [--timeout S]\n"
+			std::printf("usage: facescan scan --patient ID [--name N] [--accession A] [--study-uid U]\n"
+				    "                     [--no-wait] [--press] [--json] [--socket PATH] [--timeout S]\n"
 				    "Asks facescand for a scan (clinic mode: now; booth mode: at the next button press)\n"
 				    "and prints its progress and result. Exit 0 when the scan is delivered or spooled.\n"
 				    "  -p, --patient ID  patient id: letters, digits, '.', '_', '-' (max 64)\n"
+				    "      --name N      patient name for DICOM, Family^Given^Middle^Prefix^Suffix\n"
+				    "                    (UTF-8, max 64 bytes, no '\\' or '=')\n"
+				    "      --accession A accession number of the order (max 16 printable ASCII)\n"
+				    "      --study-uid U study instance UID to file the scan in (digits and dots,\n"
+				    "                    max 64); default: a new study\n"
 				    "  -n, --no-wait     return once the daemon accepted the scan\n"
 				    "  -b, --press       booth mode: then press the simulated button (fake MCU or\n"
 				    "                    an emulated firmware board)\n"
@@ -76,12 +98,24 @@ int scan_main(int argc, char **argv)
 		return 2;
 	}
 	Status v = daemon::validate_patient_id(patient);
+	if (v.ok())
+		v = dicom::validate_patient_name(name);
+	if (v.ok())
+		v = dicom::validate_accession(accession);
+	if (v.ok() && study_uid_given)
+		v = dicom::validate_uid(study_uid);
 	if (!v.ok()) {
 		std::fprintf(stderr, "facescan scan: %s\n", v.message().c_str());
 		return 2;
 	}
 	int rc = 1;
 	nlohmann::json req = {{"cmd", "scan"}, {"patient", patient}, {"wait", wait}};
+	if (!name.empty())
+		req["name"] = name;
+	if (!accession.empty())
+		req["accession"] = accession;
+	if (!study_uid.empty())
+		req["study_uid"] = study_uid;
 	Status s = daemon::control_request(
 		sock, req,
 		[&](const nlohmann::json &j) {

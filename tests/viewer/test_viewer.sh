@@ -1,0 +1,136 @@
+#!/bin/sh
+# The web viewer in a real browser, on a real scan (the simulated booth reconstructed by
+# host/recon; made once and cached under build/test-cache/). `facescan view` serves the share on
+# localhost; headless Chromium (Debian's chromium, driven by puppeteer-core from npm) opens the
+# scan, waits until it is drawn and screenshots it. The face must be where the project's ray
+# caster puts it from the same viewpoint (silhouette IoU >= 0.9), and a measurement clicked
+# between two known vertices must read their distance within 0.5 mm. Paths out of the share are
+# refused. Skips (77) only when chromium or the npm/PyPI pieces cannot be installed.
+set -u
+bin=${FACESCAN_BIN:?}/facescan
+build=${FACESCAN_BUILD:-build}
+here=$(cd "$(dirname "$0")/../.." && pwd)
+command -v chromium >/dev/null 2>&1 || { echo "SKIP: chromium is not installed (tools/install-deps.sh)"; exit 77; }
+"$here/tools/install-web-deps.sh" web "$build" || { echo "SKIP: three.js / puppeteer-core could not be installed from npm"; exit 77; }
+"$here/tools/install-web-deps.sh" py "$build" || { echo "SKIP: trimesh could not be installed from PyPI"; exit 77; }
+build=$(cd "$build" && pwd)
+py=$build/pyenv/bin/python
+W=960 H=720
+tmp=$(mktemp -d /tmp/facescan-viewer.XXXXXX)
+vpid=""
+trap '[ -n "$vpid" ] && kill "$vpid" 2>/dev/null; rm -rf "$tmp"' EXIT
+fail=0
+t_start=$(date +%s)
+
+# The scan: simulated capture (half resolution) → facescan recon, cached.
+cache=$build/test-cache/viewer-scan
+if [ ! -s "$cache/scan.drc" ] || [ ! -s "$cache/scan.png" ]; then
+	rm -rf "$cache.tmp" && mkdir -p "$cache.tmp"
+	"$bin" simulate --scale 0.5 --out "$cache.tmp/set" >"$tmp/log" 2>&1 &&
+		"$bin" recon "$cache.tmp/set" -o "$cache.tmp/scan.drc" >>"$tmp/log" 2>&1 ||
+		{ echo "FAIL: could not make the scan"; cat "$tmp/log"; exit 1; }
+	# recon writes the texture beside the mesh as <stem>.png
+	rm -rf "$cache.tmp/set" "$cache" && mv "$cache.tmp" "$cache"
+	echo "ok: made the scan in $(( $(date +%s) - t_start )) s (cached in $cache)"
+fi
+share=$tmp/share
+mkdir -p "$share/P-TEST" "$tmp/outside"
+"$bin" convert "$cache/scan.drc" "$share/P-TEST/scan.glb" >"$tmp/log" 2>&1 || { echo "FAIL: convert"; cat "$tmp/log"; exit 1; }
+echo "ok: $(cat "$tmp/log")"
+echo "secret-outside-the-share" >"$tmp/outside/secret.json"
+ln -s "$tmp/outside/secret.json" "$share/P-TEST/link.json"
+ln -s "$tmp/outside" "$share/P-OUT"
+
+"$bin" view "$share" --port 0 >"$tmp/view.log" 2>&1 &
+vpid=$!
+i=0; while ! grep -q http "$tmp/view.log" && [ $i -lt 100 ]; do sleep 0.1; i=$((i + 1)); done
+url=$(sed -n 's/.*\(http[^ ]*\).*/\1/p' "$tmp/view.log" | head -1)
+case $url in http://127.0.0.1:*/) echo "ok: serving on $url (localhost)" ;; *) echo "FAIL: no URL"; cat "$tmp/view.log"; exit 1 ;; esac
+base=${url%/}
+
+# What it serves and what it refuses.
+get() { curl -s --path-as-is -o "$tmp/body" -w '%{http_code} %{content_type}' "$base$1"; }
+for case in "/share/P-TEST/scan.glb=200 model/gltf-binary" \
+	"/vendor/three/examples/jsm/libs/draco/gltf/draco_decoder.wasm=200 application/wasm" \
+	"/vendor/three/build/three.module.js=200 text/javascript; charset=utf-8" \
+	"/api/scans=200 application/json" \
+	"/share/../secret.json=40" "/share/P-TEST/../../outside/secret.json=40" \
+	"/share/%2e%2e/outside/secret.json=40" "/share/P-TEST/%2e%2e%2f%2e%2e%2foutside%2fsecret.json=40" \
+	"/share/P-TEST/link.json=403" "/share/P-OUT/secret.json=403" "/share/P-TEST/.hidden.glb=403" \
+	"/vendor/three/../../package.json=40" "/vendor/three/package.json=403" "/share//etc/passwd=40" \
+	"/share/P-TEST/scan.glb%00.png=40" "/../../../../etc/passwd=40"; do
+	path=${case%%=*} want=${case#*=}
+	got=$(get "$path")
+	case $got in
+	"$want"*) if grep -q -e secret-outside -e root: "$tmp/body"; then echo "FAIL: $path leaked a file"; fail=1
+		else echo "ok: GET $path -> $got"; fi ;;
+	*) echo "FAIL: GET $path -> $got, want $want"; fail=1 ;;
+	esac
+done
+grep -q '"P-TEST"' "$tmp/body" 2>/dev/null || true
+get /api/scans >/dev/null; grep -q '"/share/P-TEST/scan.glb"' "$tmp/body" && echo "ok: the listing names P-TEST/scan.glb" ||
+	{ echo "FAIL: listing"; cat "$tmp/body"; fail=1; }
+
+# Two known vertices: front-facing, unoccluded, on either cheek.
+"$bin" convert "$share/P-TEST/scan.glb" "$tmp/scan.ply" >/dev/null 2>&1
+pts=$("$py" - "$tmp/scan.ply" <<'PY'
+import sys
+import numpy as np
+import trimesh
+m = trimesh.load(sys.argv[1], force="mesh", process=False)
+v, n = m.vertices, m.vertex_normals
+lo, hi = v.min(0), v.max(0)
+c, size = (lo + hi) / 2, hi - lo
+facing = np.abs(n[:, 2]) > 0.85
+def visible(i):  # nothing in front of it within 3 mm across
+    d = np.hypot(v[:, 0] - v[i, 0], v[:, 1] - v[i, 1])
+    return not np.any((d < 3) & (v[:, 2] > v[i, 2] + 0.5))
+def pick(tx, ty):
+    cost = np.hypot(v[:, 0] - tx, v[:, 1] - ty) + np.where(facing, 0, 1e9)
+    for i in np.argsort(cost)[:200]:
+        if visible(i):
+            return v[i]
+    sys.exit("no visible front-facing vertex near (%.1f, %.1f)" % (tx, ty))
+a = pick(c[0] - 0.25 * size[0], c[1])
+b = pick(c[0] + 0.25 * size[0], c[1] - 0.15 * size[1])
+print(" ".join("%.4f" % x for x in list(a) + list(b)), "%.4f" % np.linalg.norm(a - b))
+PY
+) || { echo "FAIL: picking vertices"; exit 1; }
+set -- $pts
+truth=$7
+t0=$(date +%s)
+node "$here/tests/viewer/viewer_check.cjs" "$build/web/node_modules/puppeteer-core" \
+	"$base/view.html?mesh=/share/P-TEST/scan.glb" $W $H "$tmp/shot.png" "$tmp/ui.png" $1 $2 $3 $4 $5 $6 >"$tmp/page.json" 2>"$tmp/node.log"
+echo "ok: chromium ran the page in $(( $(date +%s) - t0 )) s"
+"$bin" thumbnail "$share/P-TEST/scan.glb" "$tmp/ref.png" --azimuth 0 --size ${W}x$H --mask ||
+	{ echo "FAIL: reference render"; fail=1; }
+"$py" - "$tmp/page.json" "$tmp/shot.png" "$tmp/ref.png" "$truth" <<'PY' || fail=1
+import json, sys
+import numpy as np
+from PIL import Image
+page = json.load(open(sys.argv[1]))
+bad = 0
+def check(cond, what):
+    global bad
+    print(("ok: " if cond else "FAIL: ") + what)
+    bad += not cond
+if page.get("error"):
+    print("FAIL: the page reported: %s\n%s" % (page["error"], "\n".join(page.get("console", []))))
+    sys.exit(1)
+shot = np.asarray(Image.open(sys.argv[2]).convert("RGB")).astype(int)
+ref = np.asarray(Image.open(sys.argv[3])) > 127
+face = np.abs(shot - np.array([0x20, 0x24, 0x28])).max(axis=2) > 6
+iou = (face & ref).sum() / max(1, (face | ref).sum())
+check(ref.sum() > 0.05 * ref.size, "the reference render shows the face on %.0f %% of the view" % (100 * ref.mean()))
+check(iou >= 0.9, "silhouette IoU %.4f >= 0.9 (browser %d px, ray caster %d px; loaded in %d ms)" %
+      (iou, face.sum(), ref.sum(), page["load_ms"]))
+truth = float(sys.argv[4])
+got = page.get("measurement_mm")
+check(got is not None and abs(got - truth) <= 0.5,
+      "measured %s mm between the vertices, true %.3f mm (readout '%s', clicks %s)" %
+      (None if got is None else "%.3f" % got, truth, page.get("readout"), page.get("clicks")))
+sys.exit(1 if bad else 0)
+PY
+[ -n "${FACESCAN_VIEWER_SHOT:-}" ] && cp "$tmp/ui.png" "$FACESCAN_VIEWER_SHOT"
+echo "viewer test: $(( $(date +%s) - t_start )) s"
+exit $fail
