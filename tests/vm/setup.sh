@@ -17,7 +17,7 @@ VM_DIR=$(cd "$VM_DIR" && pwd)
 skip() { echo "vm setup: skipped: $*" >&2; exit 77; }
 fail() { echo "vm setup: $*" >&2; exit 1; }
 
-for tool in qemu-system-x86_64 busybox cpio depmod modprobe make gcc; do
+for tool in qemu-system-x86_64 busybox cpio depmod modprobe make gcc patch; do
 	command -v "$tool" >/dev/null 2>&1 ||
 		skip "$tool not found (tools/install-deps.sh installs qemu-system-x86, busybox-static, cpio, kmod)"
 done
@@ -42,7 +42,7 @@ key=$(
 	{
 		echo "$kver $pver"
 		dpkg-query -W -f='${Version}' linux-source-6.1
-		cat "$here/setup.sh" "$here/Kbuild" "$here/init" "$busybox"
+		cat "$here/setup.sh" "$here/Kbuild" "$here/init" "$here/vimc-instances.patch" "$busybox"
 	} | sha256sum | cut -d' ' -f1
 )
 if [ -f "$VM_DIR/ready" ] && [ "$(cat "$VM_DIR/ready")" = "$key" ] &&
@@ -81,6 +81,8 @@ cp "$src"/drivers/media/test-drivers/vimc/*.[ch] "$src"/drivers/gpio/gpio-sim.c 
 sed -i 's/handle_simple_irq(irq_to_desc(irqnum));/generic_handle_irq(irqnum);/' "$VM_DIR/mod/irq_sim.c"
 grep -q 'generic_handle_irq(irqnum)' "$VM_DIR/mod/irq_sim.c" || fail "irq_sim.c changed upstream: patch no longer applies"
 printf '\n#include <linux/module.h>\nMODULE_LICENSE("GPL");\n' >>"$VM_DIR/mod/irq_sim.c"
+# vimc registers one device; the booth has several cameras, so a module parameter asks for more.
+patch -s -d "$VM_DIR/mod" -p1 <"$here/vimc-instances.patch" || fail "vimc-instances.patch no longer applies"
 make -s -C "$headers" M="$VM_DIR/mod" -j2 modules >"$VM_DIR/mod/build.log" 2>&1 ||
 	{ tail -20 "$VM_DIR/mod/build.log" >&2; fail "module build failed (log: $VM_DIR/mod/build.log)"; }
 mkdir -p "$moddir/updates"
@@ -101,7 +103,10 @@ for m in virtio_pci 9pnet_virtio 9p vimc gpio-sim; do
 	modprobe -d "$VM_DIR/kroot" -S "$kver" --show-depends "$m" | awk '$1 == "insmod" { print $2 }'
 done | awk '!seen[$0]++' | while read -r ko; do
 	cp "$ko" "$ird/lib/modules/"
-	basename "$ko" >>"$ird/lib/modules/order"
+	name=$(basename "$ko")
+	# Two cameras: the smallest rig that has a stereo pair, so a scan can reach reconstruction.
+	[ "$name" = vimc.ko ] && name="$name instances=2"
+	echo "$name" >>"$ird/lib/modules/order"
 done
 (cd "$ird" && find . | LC_ALL=C sort | cpio -o -H newc --quiet | gzip -1) >"$VM_DIR/initramfs.cpio.gz.tmp"
 mv "$VM_DIR/initramfs.cpio.gz.tmp" "$VM_DIR/initramfs.cpio.gz"
