@@ -110,7 +110,7 @@ while :; do
 	"$FACESCAN_BIN/facescan" last --json --socket "$sock" >"$tmp/last" 2>&1
 	grep -q '"state":"\(failed\|delivered\|spooled\)"' "$tmp/last" && break
 	i=$((i + 1))
-	[ $i -lt 240 ] || die "no finished scan 120 s after the press: $(cat "$tmp/last")"
+	[ $i -lt 180 ] || die "no finished scan 90 s after the press: $(cat "$tmp/last")"
 	sleep 0.5
 done
 say "scan finished $(($(date +%s) - pressed)) s after the press"

@@ -23,7 +23,9 @@
 
 #include "facescan/camera.h"
 
-#define W 640
+/* libcamera's vimc handler takes sizes in multiples of 6 (its scaler scales by 3, the sensor
+ * needs even sizes): 636 x 480 is the nearest to VGA it delivers as asked. */
+#define W 636
 #define H 480
 #define N_CAMS 2
 
@@ -67,9 +69,11 @@ static void check_colour_bars(const struct fscan_frame *f)
 	const uint8_t *black = f->data + (size_t)y * f->stride + (size_t)(f->width * 15 / 16) * 3;
 	printf("  camera %u: yellow bar (%u,%u,%u) cyan bar (%u,%u,%u) black bar (%u,%u,%u)\n", f->camera,
 	       yellow[0], yellow[1], yellow[2], cyan[0], cyan[1], cyan[2], black[0], black[1], black[2]);
-	assert_true(yellow[0] > 120 && yellow[1] > 120 && yellow[2] < 80);
-	assert_true(cyan[0] < 80 && cyan[1] > 120 && cyan[2] > 120);
-	assert_true(black[0] < 60 && black[1] < 60 && black[2] < 60);
+	/* The levels are vimc's (bayer sensor, then its debayer): yellow ~(191,143,0), cyan
+	 * ~(0,114,95); what matters is which channel is which. */
+	assert_true(yellow[0] > 120 && yellow[1] > 80 && yellow[2] < 40);
+	assert_true(cyan[0] < 40 && cyan[1] > 80 && cyan[2] > 60);
+	assert_true(black[0] < 40 && black[1] < 40 && black[2] < 40);
 }
 
 /* Collects n triggers starting at first; checks grouping, size, format, timestamps. Returns the
@@ -134,8 +138,12 @@ static void test_enumerate(void **state)
 static void test_configure_rejects_what_the_sensor_cannot(void **state)
 {
 	(void)state;
-	/* A size no pipeline can produce is refused, not silently replaced. */
+	/* A size the pipeline would adjust is refused, not silently replaced: 7 x 5 (below vimc's
+	 * minimum) and 640 x 480 (not a multiple of 6: libcamera would make it 636 x 480). */
 	struct fscan_camera_config cfg = {.width = 7, .height = 5};
+	assert_int_equal(fscan_camera_configure(cam, &cfg), -EINVAL);
+	cfg.width = 640;
+	cfg.height = 480;
 	assert_int_equal(fscan_camera_configure(cam, &cfg), -EINVAL);
 	configure();
 	struct fscan_camera_info info;
@@ -163,8 +171,11 @@ static void test_stream_stop_restart(void **state)
 static void test_camera_vanishes(void **state)
 {
 	(void)state;
+	fscan_camera_disarm(cam); /* whatever an earlier failure left armed */
 	configure();
-	assert_int_equal(fscan_camera_arm(cam, 0, 8), 0);
+	/* libcamera's vimc handler gives 4 buffers a stream: at most 4 triggers per arm. */
+	assert_int_equal(fscan_camera_arm(cam, 0, 8), -EINVAL);
+	assert_int_equal(fscan_camera_arm(cam, 0, 4), 0);
 	struct fscan_frame_set *set = NULL;
 	assert_int_equal(fscan_camera_collect(cam, 10000, &set), 0);
 	fscan_frame_set_free(set);
@@ -173,7 +184,7 @@ static void test_camera_vanishes(void **state)
 	assert_int_equal(write_sysfs("/sys/bus/platform/drivers/vimc/unbind", "vimc.1"), 0);
 	double t0 = now_s();
 	int r = 0;
-	for (int i = 0; i < 7 && r == 0; i++) {
+	for (int i = 0; i < 3 && r == 0; i++) {
 		r = fscan_camera_collect(cam, 3000, &set);
 		fscan_frame_set_free(set);
 		set = NULL;
