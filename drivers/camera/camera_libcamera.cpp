@@ -19,6 +19,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
@@ -56,12 +57,18 @@ struct Cam {
 	std::map<const FrameBuffer *, Mapping> maps;
 	std::vector<std::unique_ptr<Request>> requests;
 	bool acquired = false, started = false, connected = false;
+	// libcamera saw the device go (udev). Camera::stop() then returns -ENODEV at once; were it
+	// to reach the pipeline handler, libcamera 0.0.3 aborts the process (assertion
+	// "queuedRequests_.empty()": the vanished device never returns the queued buffers).
+	std::atomic<bool> gone{false};
+	std::atomic<unsigned> outstanding{0}; // queued requests not yet completed or cancelled
 	bool swap_rb = false; // RGB888 in libcamera's naming is B,G,R in memory
 	uint32_t width = 0, height = 0, stride = 0;
 	bool have_base = false;
 	unsigned int base_sequence = 0;
 
 	void completed(Request *request);
+	void disconnected() { gone = true; }
 };
 
 struct Ctx {
@@ -77,6 +84,7 @@ struct Ctx {
 void Cam::completed(Request *request)
 {
 	// Trivial on purpose: libcamera's thread only hands the request over.
+	outstanding--;
 	if (request->status() == Request::RequestCancelled)
 		return;
 	std::lock_guard<std::mutex> g(ctx->lock);
@@ -94,6 +102,10 @@ void unmap_all(Cam *c)
 
 void stop_cam(Cam *c)
 {
+	// Requests still queued may mean a device that vanished before libcamera heard it from udev
+	// (see `gone`): give that notice a moment to arrive before stop() reaches the pipeline.
+	for (int i = 0; c->started && c->outstanding > 0 && !c->gone && i < 50; i++)
+		usleep(10000);
 	if (c->started)
 		c->camera->stop(); // cancels what is still queued; waits for completion
 	c->started = false;
@@ -104,8 +116,10 @@ void stop_cam(Cam *c)
 void release_cam(Cam *c)
 {
 	stop_cam(c);
-	if (c->connected)
+	if (c->connected) {
 		c->camera->requestCompleted.disconnect(c, &Cam::completed);
+		c->camera->disconnected.disconnect(c, &Cam::disconnected);
+	}
 	c->connected = false;
 	unmap_all(c);
 	c->alloc.reset();
@@ -172,7 +186,10 @@ int choose_cameras(Ctx *ctx, const fscan_camera_params *p)
 
 int lc_open_impl(const fscan_camera_params *p, void **ret_ctx)
 {
-	logSetTarget(LoggingTargetNone); // drivers never log
+	// Drivers never log: libcamera's own log is off unless its user asked for it with
+	// libcamera's variables (then its errors, and the message of an abort, reach stderr).
+	if (!std::getenv("LIBCAMERA_LOG_LEVELS") && !std::getenv("LIBCAMERA_LOG_FILE"))
+		logSetTarget(LoggingTargetNone);
 	auto ctx = std::make_unique<Ctx>();
 	ctx->cm = std::make_unique<CameraManager>();
 	int r = ctx->cm->start();
@@ -186,6 +203,7 @@ int lc_open_impl(const fscan_camera_params *p, void **ret_ctx)
 			break;
 		c->acquired = true;
 		c->camera->requestCompleted.connect(c.get(), &Cam::completed);
+		c->camera->disconnected.connect(c.get(), &Cam::disconnected);
 		c->connected = true;
 		// The default still-capture size until configure() says otherwise.
 		std::unique_ptr<CameraConfiguration> def = c->camera->generateConfiguration({StreamRole::StillCapture});
@@ -251,6 +269,7 @@ int configure_cam(Cam *c, const fscan_camera_config *cfg)
 		return r;
 	c->acquired = true;
 	c->camera->requestCompleted.connect(c, &Cam::completed);
+	c->camera->disconnected.connect(c, &Cam::disconnected);
 	c->connected = true;
 	c->config = c->camera->generateConfiguration({StreamRole::StillCapture});
 	if (!c->config || c->config->empty())
@@ -345,10 +364,15 @@ int arm_cam(Ctx *ctx, Cam *c, uint32_t n)
 	if (r < 0)
 		return r;
 	c->started = true;
+	c->outstanding = 0;
 	// Every request is queued before the trigger can come.
-	for (auto &req : c->requests)
-		if ((r = c->camera->queueRequest(req.get())) < 0)
+	for (auto &req : c->requests) {
+		c->outstanding++;
+		if ((r = c->camera->queueRequest(req.get())) < 0) {
+			c->outstanding--;
 			return r;
+		}
+	}
 	return 0;
 }
 

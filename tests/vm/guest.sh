@@ -26,6 +26,8 @@ udevadm settle -t 30
 echo "$t0 $(now_ms)" >"$results/boot.ms" # uptime at the guest script, at udev settled
 
 export FACESCAN_VM=1 FACESCAN_BIN FACESCAN_VM_SHARE=$share/work HOME=/tmp
+# libcamera's errors (and the message of an abort inside it) into each test's log.
+export LIBCAMERA_LOG_LEVELS='*:ERROR'
 export ASAN_OPTIONS=detect_leaks=1:abort_on_error=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
 mkdir -p "$FACESCAN_VM_SHARE"
 cd "$REPO" || poweroff

@@ -25,7 +25,7 @@ share=$vm/share
 rm -rf "$share"
 mkdir -p "$share/results"
 default_tests="$tests/vm/test_vm_gpio $tests/vm/test_vm_camera $tests/vm/test_vm_capture
-$tests/drivers/test_camera_libcamera_enum $tests/drivers/test_camera_libcamera $repo/tests/vm/guest_scan.sh"
+$tests/drivers/test_camera_libcamera_enum $repo/tests/vm/guest_scan.sh"
 {
 	echo "REPO='$repo'"
 	echo "FACESCAN_BIN='$bin'"
