@@ -3,7 +3,8 @@
 # on this machine's root shared read-only, runs the real-backend tests inside in one boot and
 # reports each one. Exit 0 all passed, 77 QEMU or the kernel packages cannot be had, 1 failed.
 # Environment: FACESCAN_BUILD (build/), FACESCAN_BIN (the binaries under test; make test sets
-# both), VM_TIMEOUT (whole run, s; default 300), VM_TESTS (override the list, absolute paths).
+# both), VM_TIMEOUT (whole run, s; default 480: ~130 s on an idle 2-core host, over 300 s when
+# other builds load it), VM_TESTS (override the list, absolute paths).
 set -u
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 build=${FACESCAN_BUILD:-build}
@@ -34,7 +35,7 @@ $tests/drivers/test_camera_libcamera_enum $repo/tests/vm/guest_scan.sh"
 
 start=$(date +%s)
 # -smp 2: MTTCG runs the guest's two CPUs on two host threads (the machine's two cores).
-timeout -k 5 "${VM_TIMEOUT:-300}" qemu-system-x86_64 \
+timeout -k 5 "${VM_TIMEOUT:-480}" qemu-system-x86_64 \
 	-machine q35,accel=tcg -cpu max -smp 2 -m 2048 \
 	-nographic -no-reboot -net none -serial "file:$vm/console.log" -monitor none \
 	-kernel "$vm/vmlinuz" -initrd "$vm/initramfs.cpio.gz" \
