@@ -2,6 +2,7 @@
 #include "recon/dense.hpp"
 
 #include "recon/meshing.hpp"
+#include "recon/triangulate.hpp"
 
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
@@ -75,13 +76,8 @@ void window_ncc(const cv::Mat &a, const cv::Mat &b, int block, cv::Mat *ret_ncc,
 void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b, double depth_mm,
 			    double side_mm, double *ret_lo, double *ret_hi)
 {
-	const cv::Vec3d ca = a.centre(), cb = b.centre();
+	const cv::Vec3d centre = axes_meet(a, b);
 	const cv::Vec3d da = a.R.t() * cv::Vec3d(0, 0, 1), db = b.R.t() * cv::Vec3d(0, 0, 1);
-	const cv::Vec3d w = ca - cb;
-	const double A = da.dot(da), B = da.dot(db), C = db.dot(db), D = da.dot(w), E = db.dot(w);
-	const double den = A * C - B * B;
-	const double sa = std::fabs(den) > 1e-9 ? (B * E - C * D) / den : 500, tb = std::fabs(den) > 1e-9 ? (A * E - B * D) / den : 500;
-	const cv::Vec3d centre = ((ca + da * sa) + (cb + db * tb)) * 0.5;
 	cv::Vec3d axis = da + db;
 	axis *= 1.0 / std::max(1e-9, cv::norm(axis));
 	cv::Vec3d side = axis.cross(a.R.t() * cv::Vec3d(0, 1, 0));

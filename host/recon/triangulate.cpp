@@ -174,4 +174,17 @@ Status triangulate_pair(const PairMatches &pair, const CameraModel &cam_a, const
 	return {};
 }
 
+cv::Vec3d axes_meet(const CameraModel &a, const CameraModel &b)
+{
+	const cv::Vec3d ca = a.centre(), cb = b.centre();
+	const cv::Vec3d da = a.R.t() * cv::Vec3d(0, 0, 1), db = b.R.t() * cv::Vec3d(0, 0, 1);
+	const cv::Vec3d w = ca - cb;
+	const double A = da.dot(da), B = da.dot(db), C = db.dot(db), D = da.dot(w), E = db.dot(w);
+	const double den = A * C - B * B;
+	if (std::fabs(den) < 1e-9)
+		return ca + da * 500.0;
+	const double s = (B * E - C * D) / den, t = (A * E - B * D) / den;
+	return ((ca + da * s) + (cb + db * t)) * 0.5;
+}
+
 } // namespace facescan::recon

@@ -25,6 +25,10 @@ struct TriangulateStats {
 Status triangulate_pair(const PairMatches &pair, const CameraModel &cam_a, const CameraModel &cam_b,
 			const TriangulateParams &params, PartialModel *ret_model, TriangulateStats *ret_stats);
 
+/// The point halfway between the two cameras' optical axes where they pass closest: where a
+/// booth's pair looks (world mm). Parallel axes: 500 mm in front of camera a.
+cv::Vec3d axes_meet(const CameraModel &a, const CameraModel &b);
+
 /// Projects world points into a camera with its distortion (pixels).
 std::vector<cv::Point2d> project_points(const CameraModel &cam, const std::vector<cv::Point3d> &points);
 

@@ -9,6 +9,7 @@
 //   sgbm-baseline CAPTURE_DIR -o OUT.drc [--scale 0.5] [--depth-range MM]
 #include "capture/capture_set.hpp"
 #include "mesh_io/mesh_io.hpp"
+#include "recon/triangulate.hpp"
 #include "recon/types.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -26,20 +27,6 @@ using namespace facescan;
 
 namespace {
 
-// The point nearest to both cameras' optical axes: where a booth's cameras look.
-cv::Vec3d axes_meet(const CameraModel &a, const CameraModel &b)
-{
-	const cv::Vec3d ca = a.centre(), cb = b.centre();
-	const cv::Vec3d da = a.R.t() * cv::Vec3d(0, 0, 1), db = b.R.t() * cv::Vec3d(0, 0, 1);
-	const cv::Vec3d w = ca - cb;
-	const double A = da.dot(da), B = da.dot(db), C = db.dot(db), D = da.dot(w), E = db.dot(w);
-	const double den = A * C - B * B;
-	if (std::fabs(den) < 1e-9)
-		return ca + da * 500.0;
-	const double s = (B * E - C * D) / den, t = (A * E - B * D) / den;
-	return ((ca + da * s) + (cb + db * t)) * 0.5;
-}
-
 int run_pair(const cv::Mat &fa, const cv::Mat &fb, const CameraModel &a, const CameraModel &b, double scale,
 	     double depth_range, recon::Mesh *mesh)
 {
@@ -56,7 +43,7 @@ int run_pair(const cv::Mat &fa, const cv::Mat &fb, const CameraModel &a, const C
 	cv::remap(fb, lb, m2x, m2y, cv::INTER_LINEAR);
 	// Disparity range of the working volume: ±depth_range along the cameras' mean axis and
 	// ±100 mm across it, around where the axes meet.
-	const cv::Vec3d centre = axes_meet(a, b);
+	const cv::Vec3d centre = recon::axes_meet(a, b);
 	cv::Vec3d axis = a.R.t() * cv::Vec3d(0, 0, 1) + b.R.t() * cv::Vec3d(0, 0, 1);
 	axis *= 1.0 / cv::norm(axis);
 	const cv::Vec3d side = axis.cross(cv::Vec3d(0, 1, 0)) * (1.0 / std::max(1e-9, cv::norm(axis.cross(cv::Vec3d(0, 1, 0)))));
