@@ -32,7 +32,7 @@ struct DenseParams {
 	/// SGBM block size (odd) and smoothness penalties per channel (P1, P2 = factor * cn * block²).
 	int block = 5;
 	int p1_factor = 8, p2_factor = 32;
-	int uniqueness = 5;	    // SGBM uniqueness ratio, percent
+	int uniqueness = 10;	    // SGBM uniqueness ratio, percent
 	int disp12_max_diff = 1;    // left-right check, pixels at the matching resolution
 	int speckle_window = 80;    // connected components smaller than this are dropped...
 	int speckle_range = 2;	    // ... when they differ from their surroundings by more (px)
@@ -59,7 +59,7 @@ struct DenseParams {
 	double contrast_window_pitches = 1.5;
 	double default_pitch_px = 16;
 	/// Points whose NCC over the block is below this are dropped (0..1).
-	double min_confidence = 0.3;
+	double min_confidence = 0.5;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
