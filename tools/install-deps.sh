@@ -9,7 +9,11 @@ libdraco-dev libcmocka-dev libembree-dev nlohmann-json3-dev libsystemd-dev
 gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm
 clang libclang-rt-14-dev python3
 draco libtinygltf-dev libassimp-dev libdcmtk-dev libcpp-httplib-dev libssl-dev zlib1g-dev libbrotli-dev
-orthanc chromium"
+orthanc chromium
+qemu-system-x86 linux-headers-amd64 linux-source-6.1 busybox-static cpio kmod patch udev libcamera-ipa"
+# The last line is the VM tier (tests/vm/README.md): QEMU, the kernel headers and sources vimc
+# and gpio-sim are built from, the initramfs's tools, udev and the vimc IPA so libcamera finds
+# its cameras inside the VM. The kernel image itself is fetched into build/vm, not installed.
 
 missing=""
 for p in $PKGS; do

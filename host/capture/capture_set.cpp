@@ -8,9 +8,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <cstring>
-#include <fstream>
 
 namespace facescan {
 
@@ -33,10 +36,65 @@ bool exists(const std::string &path)
 	return stat(path.c_str(), &st) == 0;
 }
 
+// A number for a message: 1e+308, 0.04, 1600.
+std::string num(double v)
+{
+	char buf[32];
+	std::snprintf(buf, sizeof buf, "%.6g", v);
+	return buf;
+}
+
 std::string cam_key(int i, const char *field)
 {
 	return "cam" + std::to_string(i) + "_" + field;
 }
+
+// The deepest bracket nesting of a YAML/JSON text, over-estimated: quoted strings are skipped
+// (with backslash escapes), and the result is the larger of the count with and without
+// '#' comments, so no reading of the text a parser could take nests deeper than this. OpenCV's
+// FileStorage and a JSON dump recurse once per level: ~40,000 '[' overflow the stack.
+int max_nesting(const std::string &text, bool yaml)
+{
+	int worst = 0;
+	for (int comments = 0; comments < (yaml ? 2 : 1); comments++) {
+		int depth = 0;
+		char quote = 0;
+		bool comment = false;
+		for (size_t i = 0; i < text.size(); i++) {
+			const char c = text[i];
+			if (comment) {
+				if (c == '\n')
+					comment = false;
+				continue;
+			}
+			if (quote) {
+				if (c == '\\' && quote == '"')
+					i++;
+				else if (c == quote)
+					quote = 0;
+				continue;
+			}
+			if (c == '"' || (yaml && c == '\''))
+				quote = c;
+			else if (comments && c == '#' && (i == 0 || std::isspace(static_cast<unsigned char>(text[i - 1]))))
+				comment = true;
+			else if (c == '[' || c == '{')
+				worst = std::max(worst, ++depth);
+			else if ((c == ']' || c == '}') && depth > 0)
+				depth--;
+		}
+	}
+	return worst;
+}
+
+// What a calibration or metadata file may hold: ours are a few kB.
+constexpr size_t kMaxTextFileBytes = 1 << 20;
+// Our files nest 2 deep (a matrix's data in a map; the trigger report's arrays in capture.json).
+constexpr int kMaxNesting = 32;
+// Image sizes a reader accepts: a 1600x1200 camera is 1.9 MP; the largest machine-vision
+// sensors are ~25 MP. Bounding it bounds what decoding a frame may allocate.
+constexpr int kMaxImageSide = 10000;
+constexpr long long kMaxImagePixels = 40LL * 1000 * 1000;
 
 // Reads a real matrix node of exactly rows x cols (either orientation for vectors).
 Status read_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
@@ -73,23 +131,149 @@ Status check_calibration(const std::string &file, const Calibration &c)
 {
 	for (size_t i = 0; i < c.cameras.size(); i++) {
 		const CameraModel &cam = c.cameras[i];
+		const int k = int(i);
 		std::string who = file + ": camera " + std::to_string(i);
-		if (cam.K(0, 0) <= 0 || cam.K(1, 1) <= 0 || cam.K(2, 2) != 1.0)
-			return Status::error(EINVAL, who + ": field '" + cam_key(int(i), "K") +
+		if (cam.size.width <= 0 || cam.size.height <= 0 || cam.size.width > kMaxImageSide ||
+		    cam.size.height > kMaxImageSide ||
+		    (long long)cam.size.width * cam.size.height > kMaxImagePixels)
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "size") + "' is " +
+							     std::to_string(cam.size.width) + "x" +
+							     std::to_string(cam.size.height) +
+							     ", not a plausible image size (each side 1.." +
+							     std::to_string(kMaxImageSide) + ", at most " +
+							     std::to_string(kMaxImagePixels / 1000000) + " MP)");
+		if (cam.K(0, 0) <= 0 || cam.K(1, 1) <= 0 || cam.K(2, 2) != 1.0 || cam.K(1, 0) != 0 ||
+		    cam.K(2, 0) != 0 || cam.K(2, 1) != 0)
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "K") +
 							     "' is not a camera matrix");
+		// Focal lengths from a 170-degree fisheye (0.04 widths) to a 0.3-degree telephoto (200
+		// widths): anything outside is a typo or a unit error, and silently degrades the scan.
+		const double w = cam.size.width, h = cam.size.height;
+		for (double f : {cam.K(0, 0), cam.K(1, 1)})
+			if (f < 0.04 * w || f > 200 * w)
+				return Status::error(EINVAL, who + ": field '" + cam_key(k, "K") +
+								     "': focal length " + num(f) +
+								     " px is implausible for a " +
+								     std::to_string(cam.size.width) +
+								     " px wide image (0.04..200 widths)");
+		if (std::abs(cam.K(0, 1)) > cam.K(0, 0))
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "K") + "': skew " +
+							     num(cam.K(0, 1)) + " exceeds the focal length");
+		if (cam.K(0, 2) < -0.5 * w || cam.K(0, 2) > 1.5 * w || cam.K(1, 2) < -0.5 * h ||
+		    cam.K(1, 2) > 1.5 * h)
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "K") +
+							     "': principal point (" + num(cam.K(0, 2)) +
+							     ", " + num(cam.K(1, 2)) +
+							     ") lies far outside the image");
+		for (int d = 0; d < 5; d++)
+			if (!std::isfinite(cam.dist[d]) || std::abs(cam.dist[d]) > 1000)
+				return Status::error(EINVAL, who + ": field '" + cam_key(k, "dist") +
+								     "': coefficient " + num(cam.dist[d]) +
+								     " is implausible (|k| <= 1000)");
 		cv::Matx33d should_be_eye = cam.R * cam.R.t();
 		if (cv::norm(should_be_eye - cv::Matx33d::eye()) > 1e-6 || cv::determinant(cam.R) < 0)
-			return Status::error(EINVAL, who + ": field '" + cam_key(int(i), "R") +
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "R") +
 							     "' is not a rotation");
-		if (cam.size.width <= 0 || cam.size.height <= 0 || cam.size.width > 20000 ||
-		    cam.size.height > 20000)
-			return Status::error(EINVAL, who + ": field '" + cam_key(int(i), "size") +
-							     "' is not a plausible image size");
+		// A booth is about a metre across; 10 m is a unit error (m for mm) or garbage.
+		const double t_max = std::max({std::abs(cam.T[0]), std::abs(cam.T[1]), std::abs(cam.T[2])});
+		if (!(t_max <= 10000))
+			return Status::error(EINVAL, who + ": field '" + cam_key(k, "T") + "' has " + num(t_max) +
+							     " mm, the camera is more than 10 m from the world origin");
 	}
 	return {};
 }
 
+// cam{i}_size as C++ writes a cv::Size ([w, h]) or as Python's cv2.FileStorage does (a 1x2 or
+// 2x1 !!opencv-matrix of int or double). The values must be whole numbers.
+Status read_size(const cv::FileStorage &fs, const std::string &file, const std::string &key,
+		 cv::Size *ret)
+{
+	cv::FileNode node = fs[key];
+	const std::string want = file + ": field '" + key +
+				 "' must be [width, height] or a 1x2 matrix of whole numbers";
+	double v[2];
+	if (node.isSeq()) {
+		if (node.size() != 2)
+			return Status::error(EINVAL, want);
+		for (int k = 0; k < 2; k++) {
+			if (!node[k].isInt() && !node[k].isReal())
+				return Status::error(EINVAL, want);
+			v[k] = node[k].isInt() ? double(int(node[k])) : double(node[k]);
+		}
+	} else if (node.isMap()) {
+		cv::Mat m;
+		try {
+			node >> m;
+		} catch (const cv::Exception &) {
+			m.release();
+		}
+		if (m.empty() || m.total() != 2 || !(m.rows == 1 || m.cols == 1) || m.channels() != 1)
+			return Status::error(EINVAL, want);
+		m.convertTo(m, CV_64F);
+		v[0] = m.at<double>(0);
+		v[1] = m.at<double>(1);
+	} else {
+		return Status::error(EINVAL, want);
+	}
+	for (double x : v)
+		if (!std::isfinite(x) || x != std::floor(x))
+			return Status::error(EINVAL, want + ", got a fractional or non-finite value");
+	for (double x : v)
+		if (x < 1 || x > kMaxImageSide)
+			return Status::error(EINVAL, file + ": field '" + key + "': " + num(x) +
+							     " is not a plausible image side (1.." +
+							     std::to_string(kMaxImageSide) + " px)");
+	*ret = cv::Size(int(v[0]), int(v[1]));
+	return {};
+}
+
 } // namespace
+
+Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret)
+{
+	int fd = open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+	if (fd < 0) {
+		int e = errno;
+		if (e == ENOENT)
+			return Status::error(ENOENT, path + ": missing");
+		return Status::error(e, path + ": cannot open: " + errno_text(e));
+	}
+	struct stat st;
+	if (fstat(fd, &st) < 0) {
+		int e = errno;
+		close(fd);
+		return Status::error(e, path + ": cannot stat: " + errno_text(e));
+	}
+	if (!S_ISREG(st.st_mode)) {
+		close(fd);
+		return Status::error(EINVAL, path + ": not a regular file");
+	}
+	if (static_cast<unsigned long long>(st.st_size) > max_bytes) {
+		close(fd);
+		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) +
+						    " bytes, more than the " + std::to_string(max_bytes) +
+						    " this file may have");
+	}
+	std::string text(size_t(st.st_size), '\0');
+	size_t got = 0;
+	while (got < text.size()) {
+		ssize_t n = read(fd, &text[got], text.size() - got);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n < 0) {
+			int e = errno;
+			close(fd);
+			return Status::error(e, path + ": read failed: " + errno_text(e));
+		}
+		if (n == 0)
+			break; // shrank while we read: take what is there, the parser judges it
+		got += size_t(n);
+	}
+	close(fd);
+	text.resize(got);
+	*ret = std::move(text);
+	return {};
+}
 
 Status write_file_atomic(const std::string &path, const void *data, size_t size)
 {
@@ -152,11 +336,18 @@ Status write_image_atomic(const std::string &path, const cv::Mat &image)
 
 Status read_calibration(const std::string &path, Calibration *ret_calibration)
 {
-	if (!exists(path))
-		return Status::error(ENOENT, path + ": missing");
+	std::string text;
+	Status rs = read_regular_file(path, kMaxTextFileBytes, &text);
+	if (!rs.ok())
+		return rs;
+	if (max_nesting(text, true) > kMaxNesting)
+		return Status::error(EINVAL, path + ": nested more than " + std::to_string(kMaxNesting) +
+						     " levels deep; not a calibration file");
 	cv::FileStorage fs;
 	try {
-		fs.open(path, cv::FileStorage::READ);
+		// An empty text would make OpenCV take the string as a file name.
+		fs.open(text.empty() ? std::string("%YAML:1.0\n") : text,
+			cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
 	} catch (const cv::Exception &) {
 		return Status::error(EINVAL, path + ": not a readable OpenCV YAML file");
 	}
@@ -191,12 +382,8 @@ Status read_calibration(const std::string &path, Calibration *ret_calibration)
 		if (!(st = read_matrix(fs, path, cam_key(i, "T"), 3, 1, &m)).ok())
 			return st;
 		cam.T = cv::Vec3d(m.ptr<double>());
-		cv::FileNode size = fs[cam_key(i, "size")];
-		if (size.empty() || !size.isSeq() || size.size() != 2 || !size[0].isInt() ||
-		    !size[1].isInt())
-			return Status::error(EINVAL, path + ": field '" + cam_key(i, "size") +
-							     "' must be [width, height]");
-		cam.size = cv::Size(int(size[0]), int(size[1]));
+		if (!(st = read_size(fs, path, cam_key(i, "size"), &cam.size)).ok())
+			return st;
 		calib.cameras.push_back(cam);
 	}
 	Status st = check_calibration(path, calib);
@@ -234,13 +421,32 @@ Status write_calibration(const std::string &path, const Calibration &c)
 	return write_file_atomic(path, text.data(), text.size());
 }
 
+// Reads a PNG frame, checking the size its header declares against the calibration before
+// anything is decoded: a 1 MB file may declare 20000x20000 pixels (1.2 GB decoded).
 static Status read_frame(const std::string &path, const cv::Size &size, cv::Mat *ret)
 {
-	if (!exists(path))
-		return Status::error(ENOENT, path + ": missing");
+	// A PNG is never much larger than its raw pixels (16-bit RGBA, stored blocks).
+	const size_t max_bytes = size_t(size.width) * size_t(size.height) * 8 + (1 << 20);
+	std::string bytes;
+	Status st = read_regular_file(path, max_bytes, &bytes);
+	if (!st.ok())
+		return st;
+	static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+	const unsigned char *b = reinterpret_cast<const unsigned char *>(bytes.data());
+	if (bytes.size() < 33 || std::memcmp(b, kSignature, 8) != 0 || std::memcmp(b + 12, "IHDR", 4) != 0)
+		return Status::error(EIO, path + ": cannot decode image (not a PNG file)");
+	auto be32 = [](const unsigned char *p) {
+		return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | uint32_t(p[3]);
+	};
+	const uint32_t w = be32(b + 16), h = be32(b + 20);
+	if (w != uint32_t(size.width) || h != uint32_t(size.height))
+		return Status::error(EINVAL, path + ": size " + std::to_string(w) + "x" + std::to_string(h) +
+						     " does not match the calibration's " +
+						     std::to_string(size.width) + "x" +
+						     std::to_string(size.height));
 	cv::Mat img;
 	try {
-		img = cv::imread(path, cv::IMREAD_UNCHANGED);
+		img = cv::imdecode(cv::Mat(1, int(bytes.size()), CV_8U, &bytes[0]), cv::IMREAD_UNCHANGED);
 	} catch (const cv::Exception &) {
 		img.release();
 	}
@@ -251,11 +457,7 @@ static Status read_frame(const std::string &path, const cv::Size &size, cv::Mat 
 						     std::to_string(img.channels()) + " channel(s) of depth " +
 						     std::to_string(img.depth()));
 	if (img.size() != size)
-		return Status::error(EINVAL, path + ": size " + std::to_string(img.cols) + "x" +
-						     std::to_string(img.rows) +
-						     " does not match the calibration's " +
-						     std::to_string(size.width) + "x" +
-						     std::to_string(size.height));
+		return Status::error(EINVAL, path + ": decoded size does not match its header");
 	*ret = img;
 	return {};
 }
@@ -271,11 +473,15 @@ Status read_capture_set(const std::string &dir, CaptureSet *ret_set)
 		return st;
 	const size_t n = set.calibration.cameras.size();
 
-	std::string meta_path = dir + "/capture.json";
-	std::ifstream in(meta_path);
-	if (!in)
-		return Status::error(ENOENT, meta_path + ": missing");
-	nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+	std::string meta_path = dir + "/capture.json", meta_text;
+	st = read_regular_file(meta_path, kMaxTextFileBytes, &meta_text);
+	if (!st.ok())
+		return st;
+	// nlohmann parses any depth but dumps (trigger_report) recursively.
+	if (max_nesting(meta_text, false) > kMaxNesting)
+		return Status::error(EINVAL, meta_path + ": nested more than " +
+						     std::to_string(kMaxNesting) + " levels deep");
+	nlohmann::json j = nlohmann::json::parse(meta_text, nullptr, false);
 	if (j.is_discarded() || !j.is_object())
 		return Status::error(EINVAL, meta_path + ": not a JSON object");
 	for (const char *key : {"scan_id", "pattern"})

@@ -55,6 +55,10 @@ Status read_capture_set(const std::string &dir, CaptureSet *ret_set);
 /// Writes a capture set into `dir` (created if missing). Each file is written atomically.
 Status write_capture_set(const std::string &dir, const CaptureSet &set);
 
+/// Reads a whole file of at most `max_bytes`. Opened non-blocking and refused unless it is a
+/// regular file, so a FIFO or a device under that name cannot hang the reader nor a huge file
+/// balloon it. -ENOENT missing, -EINVAL not a regular file, -EFBIG too large, -errno.
+Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret);
 /// Writes bytes to `path` atomically: temp file in the same directory, fsync, rename, fsync dir.
 Status write_file_atomic(const std::string &path, const void *data, size_t size);
 /// Encodes an image by the path's extension and writes it atomically.

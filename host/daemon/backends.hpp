@@ -79,6 +79,7 @@ struct Capture {
 	TriggerReport report;
 	std::string calibration_id;
 	std::string source_dir;  // a capture set on disk (calibration.yaml, cam*.png), if any
+	std::string scan_name;   // <UTC time>_<scan-id>: names a capture kept for an offline retry
 	nlohmann::json meta;     // backend facts for the metadata
 };
 

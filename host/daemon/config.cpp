@@ -227,6 +227,14 @@ const std::vector<Key> &keys()
 		{"keep_captures", "keep each raw capture set in <spool_dir>/captures/",
 		 bool_in(&Config::keep_captures),
 		 [](const Config &c) { return std::string(c.keep_captures ? "true" : "false"); }},
+		{"client_timeout_ms", "a control client must send a whole request within this (then it is closed)",
+		 int_in(&Config::client_timeout_ms, 100, 600000), int_of(&Config::client_timeout_ms)},
+		{"recon_timeout_ms", "pipeline: the reconstruction worker process is killed after this",
+		 int_in(&Config::recon_timeout_ms, 100, 3600000), int_of(&Config::recon_timeout_ms)},
+		{"recon_memory_mb", "pipeline: address-space limit of the worker process in MiB; 0: none",
+		 int_in(&Config::recon_memory_mb, 0, 1048576), int_of(&Config::recon_memory_mb)},
+		{"recon_worker", "pipeline: the facescan CLI whose recon verb is the worker; empty: the facescan beside facescand",
+		 path_in(&Config::recon_worker, true), str_of(&Config::recon_worker)},
 		{"test_delay_write_ms", "fault tests only: pause between the files of a spooled scan",
 		 int_in(&Config::test_delay_write_ms, 0, 60000), int_of(&Config::test_delay_write_ms)},
 		{"test_delay_deliver_ms", "fault tests only: pause between delivered files",
@@ -320,6 +328,9 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 	Status id = validate_patient_id(c.booth_patient_id);
 	if (!id.ok())
 		return Status::error(EINVAL, name + ": booth_patient_id: " + id.message());
+	if (c.recon_timeout_ms >= c.stage_timeout_ms)
+		return Status::error(EINVAL, name + ": recon_timeout_ms must be below stage_timeout_ms, or the watchdog "
+					     "restarts the daemon before the worker is killed");
 	if (!c.pacs_called_ae.empty()) {
 		dicom::Pacs pacs{c.pacs_calling_ae, c.pacs_called_ae, c.pacs_host, c.pacs_port, c.pacs_timeout_s};
 		Status p = dicom::validate_pacs(pacs);

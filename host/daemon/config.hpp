@@ -45,6 +45,10 @@ struct Config {
 	int spool_retry_ms = 5000;               // how often spooled scans are offered to the share
 	int stage_timeout_ms = 300000;           // a stage running longer stops the watchdog pings
 	bool keep_captures = false;              // keep the raw capture set in the spool
+	int client_timeout_ms = 5000;            // a control client must send a whole request within this
+	int recon_timeout_ms = 240000;           // the reconstruction worker is killed after this
+	int recon_memory_mb = 4096;              // address-space limit of the worker (0: none)
+	std::string recon_worker;                // the facescan CLI (recon verb = the worker); empty: beside facescand
 	int test_delay_write_ms = 0;             // fault tests only: pause between spooled files
 	int test_delay_deliver_ms = 0;           // fault tests only: pause between delivered files
 	// What a scan writes besides .drc/.png/.json (host/daemon/clinic_output.cpp), and where to.

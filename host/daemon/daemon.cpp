@@ -1,5 +1,6 @@
 #include "daemon/daemon.hpp"
 
+#include "capture/capture_set.hpp"
 #include "common/version.hpp"
 #include "daemon/control.hpp"
 #include "daemon/log.hpp"
@@ -12,6 +13,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -24,6 +26,7 @@
 #include <poll.h>
 #include <sstream>
 #include <sys/eventfd.h>
+#include <sys/file.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -38,7 +41,6 @@ using Clock = std::chrono::steady_clock;
 namespace {
 
 constexpr int kMaxClients = 32;
-constexpr int kClientIdleMs = 30000;
 constexpr int kRecoverEveryMs = 1000;
 constexpr int kMcuPollMs = 50;
 
@@ -51,6 +53,45 @@ int ms_until(Clock::time_point t)
 {
 	auto d = std::chrono::duration_cast<std::chrono::milliseconds>(t - Clock::now()).count();
 	return d < 0 ? 0 : static_cast<int>(d);
+}
+
+// Takes an exclusive flock on `path` (created if missing) without waiting and writes our pid
+// into it. -EBUSY names the pid that holds it. The kernel drops the lock when we die, however.
+Status take_lock(const std::string &path, const std::string &what, int *ret_fd)
+{
+	int fd = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0640);
+	if (fd < 0)
+		return Status::error(errno, "lock " + path + ": " + std::strerror(errno));
+	if (flock(fd, LOCK_EX | LOCK_NB) < 0) {
+		int err = errno;
+		char pid[32] = {};
+		if (pread(fd, pid, sizeof pid - 1, 0) < 0)
+			pid[0] = 0;
+		::close(fd);
+		if (err == EWOULDBLOCK) {
+			std::string p(pid);
+			while (!p.empty() && (p.back() == '\n' || p.back() == ' '))
+				p.pop_back();
+			return Status::error(EBUSY, "another facescand" + (p.empty() ? "" : " (pid " + p + ")") +
+							    " is running on " + what + "; refusing to start");
+		}
+		return Status::error(err, "lock " + path + ": " + std::strerror(err));
+	}
+	std::string me = std::to_string(getpid()) + "\n";
+	if (ftruncate(fd, 0) < 0 || pwrite(fd, me.data(), me.size(), 0) < 0) {
+		// the pid is a courtesy for the message above; the lock is what counts
+	}
+	*ret_fd = fd;
+	return Status();
+}
+
+// A state file of ours (a few kB): parsed if it is a regular file under 1 MiB, else null.
+json read_small_json(const std::string &path)
+{
+	std::string text;
+	if (!read_regular_file(path, 1 << 20, &text).ok())
+		return json();
+	return json::parse(text, nullptr, false, true);
 }
 
 // What the worker tells the loop.
@@ -66,7 +107,9 @@ struct Client {
 	int fd = -1;
 	LineReader reader;
 	std::string wait_scan;  // scan id whose progress this client follows
-	Clock::time_point last_active = Clock::now();
+	// A whole request must arrive by then, however slowly its bytes trickle in (slowloris);
+	// renewed after each request. A client following a scan is exempt.
+	Clock::time_point deadline;
 	bool closing = false;
 };
 
@@ -83,6 +126,10 @@ struct Daemon::Impl {
 
 	int listen_fd = -1;
 	int wake_fd = -1;
+	int lock_fd = -1;        // flock on <spool>/facescand.lock: one daemon per spool
+	int socket_lock_fd = -1; // flock on <socket>.lock: one daemon per socket
+	Clock::time_point next_refusal_log;
+	long refusals_unlogged = 0;
 	std::atomic<bool> stop{false};
 	std::vector<std::unique_ptr<Client>> clients;
 
@@ -202,12 +249,7 @@ struct Daemon::Impl {
 
 	void load_last()
 	{
-		std::ifstream f(spool.state_dir() + "/last.json");
-		if (!f)
-			return;
-		std::stringstream ss;
-		ss << f.rdbuf();
-		json j = json::parse(ss.str(), nullptr, false);
+		json j = read_small_json(spool.state_dir() + "/last.json");
 		if (j.is_object())
 			last = j;
 	}
@@ -236,7 +278,17 @@ struct Daemon::Impl {
 			}
 			::close(probe);
 		}
-		unlink(path.c_str());
+		// We hold <socket>.lock, so a socket there is a dead daemon's; anything else is not
+		// ours to delete.
+		struct stat st;
+		if (lstat(path.c_str(), &st) == 0) {
+			if (!S_ISSOCK(st.st_mode)) {
+				::close(fd);
+				return Status::error(EEXIST, "socket_path " + path +
+								     " exists and is not a socket; refusing to replace it");
+			}
+			unlink(path.c_str());
+		}
 		mode_t old = umask(0117);
 		int r = bind(fd, reinterpret_cast<sockaddr *>(&addr), sizeof addr);
 		int err = errno;
@@ -272,18 +324,54 @@ struct Daemon::Impl {
 			int fd = accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
 			if (fd < 0)
 				return;
-			if (static_cast<int>(clients.size()) >= kMaxClients) {
-				const char msg[] = "{\"ok\":false,\"error\":\"busy\",\"message\":\"too many clients\"}\n";
-				if (::send(fd, msg, sizeof msg - 1, MSG_NOSIGNAL | MSG_DONTWAIT) < 0) {
-					// the client is gone already
+			int open_clients = 0;
+			for (const auto &c : clients)
+				open_clients += !c->closing;
+			if (open_clients >= kMaxClients) {
+				// Full: the client that has waited longest without sending a request makes
+				// room, so idle connections can never lock everyone out.
+				Client *oldest = nullptr;
+				for (auto &c : clients)
+					if (c->wait_scan.empty() && !c->closing && (!oldest || c->deadline < oldest->deadline))
+						oldest = c.get();
+				if (oldest) {
+					// Closed, not erased: run_once() maps its poll entries to clients by index.
+					::shutdown(oldest->fd, SHUT_RDWR);
+					oldest->closing = true;
+					log_refusal("closed the longest-waiting idle client to admit a new one");
+				} else {
+					const char msg[] = "{\"ok\":false,\"error\":\"too_many_clients\",\"message\":"
+							   "\"too many clients following scans\"}\n";
+					if (::send(fd, msg, sizeof msg - 1, MSG_NOSIGNAL | MSG_DONTWAIT) < 0) {
+						// the client is gone already
+					}
+					::close(fd);
+					log_refusal("refused a client: all " + std::to_string(kMaxClients) +
+						    " slots follow running scans");
+					continue;
 				}
-				::close(fd);
-				continue;
 			}
 			auto c = std::make_unique<Client>();
 			c->fd = fd;
+			c->deadline = Clock::now() + std::chrono::milliseconds(cfg.client_timeout_ms);
 			clients.push_back(std::move(c));
 		}
+	}
+
+	// Refusals are logged, but a flood of them at most once a second (with the count).
+	void log_refusal(const std::string &what)
+	{
+		auto now = Clock::now();
+		if (now < next_refusal_log) {
+			refusals_unlogged++;
+			return;
+		}
+		if (refusals_unlogged)
+			log(LOG_WARNING, "control: %s (and %ld more in the last second)", what.c_str(), refusals_unlogged);
+		else
+			log(LOG_WARNING, "control: %s", what.c_str());
+		refusals_unlogged = 0;
+		next_refusal_log = now + std::chrono::seconds(1);
 	}
 
 	void read_client(Client &c)
@@ -300,7 +388,6 @@ struct Daemon::Impl {
 					c.closing = true;
 				break;
 			}
-			c.last_active = Clock::now();
 			c.reader.feed(buf, static_cast<size_t>(n));
 			std::string line;
 			for (;;) {
@@ -314,6 +401,7 @@ struct Daemon::Impl {
 					return;
 				}
 				handle_line(c, line);
+				c.deadline = Clock::now() + std::chrono::milliseconds(cfg.client_timeout_ms);
 				if (c.closing)
 					return;
 			}
@@ -569,13 +657,12 @@ struct Daemon::Impl {
 			return;
 		}
 		cap.report = report;
+		cap.scan_name = rec["base"];
 		double capture_ms = ms_since(t0);
 		post({Msg::Kind::captured, capture_ms,
 		      "[1/3] captured " + std::to_string(cap.frames.size()) + " frames of trigger " +
 			      std::to_string(report.sequence) + " in " + std::to_string(static_cast<long>(capture_ms)) + " ms",
 		      false, {{"trigger_report", report.raw}}});
-		if (cfg.keep_captures)
-			keep_capture(rec["base"], cap);
 
 		// reconstruction
 		auto t1 = Clock::now();
@@ -586,6 +673,10 @@ struct Daemon::Impl {
 			return;
 		}
 		double recon_ms = ms_since(t1);
+		// The worker backend keeps a whole set itself (keep_captures); others get the frames.
+		if (cfg.keep_captures &&
+		    access((cfg.spool_dir + "/captures/" + rec["base"].get<std::string>() + "/calibration.yaml").c_str(), F_OK) != 0)
+			keep_capture(rec["base"], cap);
 		json recon_stages = json::object();
 		for (const auto &st : out.stage_ms)
 			recon_stages[st.first] = st.second;
@@ -832,8 +923,11 @@ struct Daemon::Impl {
 				    state_name(sm.state()), cfg.stage_timeout_ms);
 		}
 		for (auto &c : clients)
-			if (c->wait_scan.empty() && ms_since(c->last_active) > kClientIdleMs)
+			if (c->wait_scan.empty() && !c->closing && now >= c->deadline) {
 				c->closing = true;
+				log_refusal("closed a client that sent no whole request within " +
+					    std::to_string(cfg.client_timeout_ms) + " ms");
+			}
 	}
 
 	int next_timeout() const
@@ -854,6 +948,9 @@ struct Daemon::Impl {
 			consider(next_mcu_poll);
 		if (watchdog_usec)
 			consider(next_ping);
+		for (const auto &c : clients)
+			if (c->wait_scan.empty())
+				consider(c->deadline);
 		return ms_until(soonest);
 	}
 
@@ -877,7 +974,7 @@ struct Daemon::Impl {
 			if (fds[1].revents)
 				accept_clients();
 			for (size_t i = 3; i < fds.size() && i - 3 < clients.size(); i++)
-				if (fds[i].revents)
+				if (fds[i].revents && !clients[i - 3]->closing)
 					read_client(*clients[i - 3]);
 		}
 		timers();
@@ -910,6 +1007,10 @@ Daemon::~Daemon()
 	}
 	if (d.wake_fd >= 0)
 		::close(d.wake_fd);
+	if (d.socket_lock_fd >= 0)
+		::close(d.socket_lock_fd);
+	if (d.lock_fd >= 0)
+		::close(d.lock_fd);
 	if (d.be.mcu)
 		d.be.mcu->close();
 }
@@ -946,7 +1047,18 @@ Status Daemon::start()
 	d.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
 	if (d.wake_fd < 0)
 		return Status::error(errno, std::string("eventfd: ") + std::strerror(errno));
+	// One daemon per spool and per socket, settled before anything is touched: a second
+	// daemon must not run crash recovery on a live daemon's spool.
 	Status s = d.spool.init();
+	if (!s.ok())
+		return s;
+	s = take_lock(d.cfg.spool_dir + "/facescand.lock", "spool " + d.cfg.spool_dir, &d.lock_fd);
+	if (!s.ok())
+		return s;
+	s = take_lock(d.cfg.socket_path + ".lock", "socket " + d.cfg.socket_path, &d.socket_lock_fd);
+	if (!s.ok())
+		return s;
+	s = d.bind_socket();
 	if (!s.ok())
 		return s;
 	d.load_last();
@@ -955,25 +1067,36 @@ Status Daemon::start()
 	if (!s.ok())
 		return s;
 	{
-		// A scan the previous daemon did not finish. Interrupted while writing, the spool
-		// (just recovered) decides; before that, nothing of it exists: report it failed.
-		std::ifstream f(d.spool.state_dir() + "/current.json");
-		std::stringstream ss;
-		ss << f.rdbuf();
-		json cur = json::parse(ss.str(), nullptr, false);
+		// The scan the previous daemon did not finish. The spool decides what became of it:
+		// queued (delivered next), on the share already, or lost before it was spooled.
+		json cur = read_small_json(d.spool.state_dir() + "/current.json");
 		if (cur.is_object() && cur.contains("scan_id")) {
 			const std::string st = cur.value("state", "?");
 			const std::string id = cur.value("scan_id", "");
-			if (st != "writing") {
+			const std::string base = cur.value("base", "");
+			const bool on_share = !base.empty() &&
+					      access((d.cfg.share_dir + "/" + cur.value("patient_id", "") + "/" +
+						      base + ".json").c_str(), F_OK) == 0;
+			cur.erase("base");
+			if (d.spool.queued(id)) {
+				log(LOG_WARNING, "scan %s: the daemon stopped before delivering it; delivering it from the spool",
+				    id.c_str());
+				cur["state"] = "spooled";
+				cur["spool_reason"] = "the daemon stopped while delivering it";
+			} else if (st == "writing" && on_share &&
+				   std::find(failed.begin(), failed.end(), id) == failed.end()) {
+				log(LOG_INFO, "scan %s: delivered before the daemon stopped", id.c_str());
+				cur["state"] = "delivered";
+			} else {
 				log(LOG_ERR, "scan %s: interrupted while %s (daemon stopped); reported failed", id.c_str(),
 				    st.c_str());
 				cur["state"] = "failed";
 				cur["failed_stage"] = st;
 				cur["error"] = "interrupted while " + st + ": the daemon stopped; scan again";
-				cur.erase("base");
-				d.last = cur;
-				d.save_last();
 			}
+			failed.erase(std::remove(failed.begin(), failed.end(), id), failed.end());
+			d.last = cur;
+			d.save_last();
 		}
 		unlink((d.spool.state_dir() + "/current.json").c_str());
 	}
@@ -1007,9 +1130,6 @@ Status Daemon::start()
 		log(LOG_INFO, "MCU connected: %s", d.be.mcu->firmware_version().c_str());
 	}
 	d.set_state_pub();
-	s = d.bind_socket();
-	if (!s.ok())
-		return s;
 	if (d.cfg.viewer_port > 0) { // a viewer that cannot start is logged; scanning goes on
 		viewer::Options vo;
 		vo.share_dir = d.cfg.share_dir;

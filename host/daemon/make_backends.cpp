@@ -1,10 +1,12 @@
 #include "daemon/make_backends.hpp"
 
+#include <unistd.h>
+
 #include "daemon/driver_cameras.hpp"
 #include "daemon/fake_backends.hpp"
 #include "daemon/gpio_mcu.hpp"
-#include "daemon/pipeline_recon.hpp"
 #include "daemon/serial_mcu.hpp"
+#include "daemon/worker_recon.hpp"
 #include "daemon/sim_renderer.hpp"
 
 namespace facescan::daemon {
@@ -40,7 +42,18 @@ Status make_backends(const Config &config, Backends *ret_backends)
 		if (config.camera_backend == "fake")
 			return Status::error(EINVAL, "recon_backend = pipeline cannot reconstruct the fake cameras' "
 						     "synthetic frames; use recon_backend = fake with camera_backend = fake");
-		b.recon = std::make_unique<PipelineReconstructor>(config.calibration_file, config.pattern_id);
+		WorkerParams w;
+		w.program = config.recon_worker;
+		w.calibration_file = config.calibration_file;
+		w.pattern_id = config.pattern_id;
+		w.spool_dir = config.spool_dir;
+		w.timeout_ms = config.recon_timeout_ms;
+		w.memory_mb = config.recon_memory_mb;
+		w.keep_captures = config.keep_captures;
+		if (w.program.empty() || access(w.program.c_str(), X_OK) != 0)
+			return Status::error(ENOENT, "recon_worker '" + w.program +
+							     "': no program to run the reconstruction in (the facescan CLI)");
+		b.recon = std::make_unique<WorkerReconstructor>(w);
 	}
 	*ret_backends = std::move(b);
 	return Status();

@@ -12,6 +12,32 @@
 
 namespace facescan::daemon {
 
+void add_simulated_accuracy(const std::string &dir, const recon::Mesh &mesh, const std::vector<CameraModel> &cameras,
+			    ReconOutput *out)
+{
+	using Clock = std::chrono::steady_clock;
+	// A simulated set carries its ground truth (-ENOENT: a real capture, nothing to score).
+	const auto t_eval = Clock::now();
+	recon::Mesh truth;
+	std::vector<CameraModel> lit_by;
+	Status s = eval::read_ground_truth(dir, &truth, &lit_by);
+	if (s.code() == -ENOENT)
+		return;
+	eval::EvalResult e;
+	if (s.ok())
+		s = eval::evaluate(mesh, truth, cameras, lit_by, eval::EvalParams(), &e);
+	if (s.ok())
+		out->quality["accuracy"] = {{"rms_mm", e.rms_mm},
+					    {"median_mm", e.median_mm},
+					    {"p95_mm", e.p95_mm},
+					    {"completeness", e.completeness},
+					    {"against", "simulator ground truth"}};
+	else
+		out->quality["accuracy"] = {{"error", s.message()}};
+	out->stage_ms.emplace_back("accuracy",
+				   std::chrono::duration<double, std::milli>(Clock::now() - t_eval).count());
+}
+
 Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_output)
 {
 	using Clock = std::chrono::steady_clock;
@@ -73,26 +99,8 @@ Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_outpu
 	out.quality = nlohmann::json::parse(recon::report_json(report), nullptr, false);
 	if (out.quality.is_discarded())
 		out.quality = nlohmann::json::object();
-	// A simulated set carries its ground truth (-ENOENT: a real capture, nothing to score).
-	const auto t_eval = Clock::now();
-	recon::Mesh truth;
-	std::vector<CameraModel> lit_by;
-	s = capture.source_dir.empty() ? Status::error(-ENOENT, "frames from the cameras")
-				       : eval::read_ground_truth(capture.source_dir, &truth, &lit_by);
-	if (s.code() != -ENOENT) {
-		eval::EvalResult e;
-		if (s.ok())
-			s = eval::evaluate(mesh, truth, set.calibration.cameras, lit_by, eval::EvalParams(), &e);
-		if (s.ok())
-			out.quality["accuracy"] = {{"rms_mm", e.rms_mm},
-						   {"median_mm", e.median_mm},
-						   {"p95_mm", e.p95_mm},
-						   {"completeness", e.completeness},
-						   {"against", "simulator ground truth"}};
-		else
-			out.quality["accuracy"] = {{"error", s.message()}};
-		out.stage_ms.emplace_back("accuracy", ms_since(t_eval));
-	}
+	if (!capture.source_dir.empty())
+		add_simulated_accuracy(capture.source_dir, mesh, set.calibration.cameras, &out);
 	*ret_output = std::move(out);
 	return Status();
 }

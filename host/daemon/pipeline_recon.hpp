@@ -5,7 +5,9 @@
 // (ground_truth.ply beside it) measures the accuracy with host/eval.
 #pragma once
 
+#include "capture/capture_set.hpp"
 #include "daemon/backends.hpp"
+#include "recon/types.hpp"
 
 namespace facescan::daemon {
 
@@ -26,5 +28,10 @@ public:
 private:
 	std::string calibration_path_, pattern_id_;
 };
+
+/// Where `dir` is a simulated set (its ground truth beside it), scores `mesh` against it as
+/// `facescan evaluate` does and adds quality["accuracy"] and an "accuracy" stage time to `out`.
+void add_simulated_accuracy(const std::string &dir, const recon::Mesh &mesh, const std::vector<CameraModel> &cameras,
+			    ReconOutput *out);
 
 } // namespace facescan::daemon

@@ -149,6 +149,16 @@ size_t Spool::pending() const
 	return n;
 }
 
+bool Spool::queued(const std::string &scan_id) const
+{
+	const std::string tail = "_" + scan_id;
+	for (const std::string &e : entries())
+		if (e.size() > tail.size() && e.compare(e.size() - tail.size(), tail.size(), tail) == 0 &&
+		    access((queue_dir_ + "/" + e + "/manifest.json").c_str(), F_OK) == 0)
+			return true;
+	return false;
+}
+
 Status Spool::put(const std::string &base, const std::string &scan_id, const std::string &patient_id,
 		  const std::vector<SpoolFile> &files, int delay_ms)
 {

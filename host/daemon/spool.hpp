@@ -49,6 +49,8 @@ public:
 	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms);
 	/// Entries waiting in the queue.
 	size_t pending() const;
+	/// Whether scan `scan_id` waits in the queue, complete (its manifest written).
+	bool queued(const std::string &scan_id) const;
 	/// Whether the share can take `bytes` more now.
 	Status share_ready(unsigned long long bytes) const;
 

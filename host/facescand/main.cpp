@@ -87,6 +87,15 @@ int main(int argc, char **argv)
 			return 1;
 		}
 	}
+	if (config.recon_worker.empty()) {
+		// The worker is the facescan CLI installed beside us.
+		char self[4096];
+		ssize_t n = readlink("/proc/self/exe", self, sizeof self - 1);
+		if (n > 0) {
+			std::string exe(self, static_cast<size_t>(n));
+			config.recon_worker = exe.substr(0, exe.rfind('/') + 1) + "facescan";
+		}
+	}
 	if (check_only) {
 		std::printf("%s: ok\n", explicit_config ? config_path.c_str() : "(defaults)");
 		return 0;

@@ -50,7 +50,8 @@ struct Rig {
 	std::unique_ptr<Daemon> d;
 	std::thread loop;
 
-	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0, fscan_gpio *gpio = nullptr)
+	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0, fscan_gpio *gpio = nullptr,
+		     int client_timeout_ms = 5000)
 	{
 		char t[] = "/tmp/facescand-test-XXXXXX";
 		assert_non_null(mkdtemp(t));
@@ -69,6 +70,7 @@ struct Rig {
 		cfg.capture_timeout_ms = 200;
 		cfg.arm_timeout_ms = 1000;
 		cfg.test_delay_write_ms = delay_write_ms;
+		cfg.client_timeout_ms = client_timeout_ms;
 		Backends b;
 		auto m = std::make_unique<FakeMcu>();
 		auto c = std::make_unique<FakeCameras>(4);
@@ -137,6 +139,27 @@ struct Rig {
 		return false;
 	}
 };
+
+// A second daemon on `cfg` with its own fake booth: started, it returns start()'s status.
+facescan::Status start_another(const Config &cfg)
+{
+	Backends b;
+	b.mcu = std::make_unique<FakeMcu>();
+	b.cameras = std::make_unique<FakeCameras>(4);
+	b.recon = std::make_unique<FakeReconstructor>();
+	Daemon other(cfg, std::move(b));
+	return other.start();
+}
+
+int connect_to(const std::string &path)
+{
+	int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
+	struct sockaddr_un addr = {};
+	addr.sun_family = AF_UNIX;
+	std::strcpy(addr.sun_path, path.c_str());
+	assert_int_equal(connect(fd, reinterpret_cast<sockaddr *>(&addr), sizeof addr), 0);
+	return fd;
+}
 
 std::string slurp(const std::string &path)
 {
@@ -448,6 +471,105 @@ static void test_check_capture_skew(void **)
 	assert_non_null(std::strstr(check_capture(c, 4, 1000).message().c_str(), "camera 3: no pattern frame"));
 }
 
+// A second daemon on the same spool or socket is refused before it touches anything: it ran
+// crash recovery on the live spool and declared the running scan failed.
+static void test_second_instance_refused(void **)
+{
+	Rig rig(Mode::clinic, 300);
+	json first = rig.ask({{"cmd", "scan"}, {"patient", "LIVE-1"}});
+	assert_true(first["ok"].get<bool>());
+	assert_true(rig.wait_state(State::writing, 3000));
+	const std::string current = rig.cfg.spool_dir + "/state/current.json";
+	const std::string before = slurp(current);
+	assert_false(before.empty());
+	facescan::Status s = start_another(rig.cfg);
+	std::printf("  same config: %s\n", s.message().c_str());
+	assert_int_equal(s.code(), -EBUSY);
+	assert_non_null(std::strstr(s.message().c_str(), "another facescand"));
+	Config other_socket = rig.cfg;
+	other_socket.socket_path = rig.dir + "/sock2";
+	assert_int_equal(start_another(other_socket).code(), -EBUSY);
+	struct stat st;
+	assert_int_not_equal(stat(other_socket.socket_path.c_str(), &st), 0);
+	Config other_spool = rig.cfg;
+	other_spool.spool_dir = rig.dir + "/spool2";
+	assert_int_equal(start_another(other_spool).code(), -EBUSY);
+	// the live socket and the running scan are untouched, and it is delivered
+	assert_int_equal(stat(rig.cfg.socket_path.c_str(), &st), 0);
+	assert_true(S_ISSOCK(st.st_mode));
+	assert_true(rig.wait_state(State::idle));
+	json last = rig.ask({{"cmd", "last"}})["last"];
+	assert_string_equal(last["scan_id"].get<std::string>().c_str(), first["scan_id"].get<std::string>().c_str());
+	assert_string_equal(last["state"].get<std::string>().c_str(), "delivered");
+}
+
+// socket_path naming a regular file: refused, the file kept (it was deleted and replaced).
+static void test_socket_path_not_a_socket(void **)
+{
+	char t[] = "/tmp/facescand-test-XXXXXX";
+	assert_non_null(mkdtemp(t));
+	const std::string dir = t;
+	Config cfg;
+	cfg.share_dir = dir + "/share";
+	cfg.spool_dir = dir + "/spool";
+	cfg.socket_path = dir + "/important.txt";
+	cfg.serial_device = "fake";
+	{
+		std::ofstream(cfg.socket_path) << "keep me\n";
+	}
+	facescan::Status s = start_another(cfg);
+	std::printf("  %s\n", s.message().c_str());
+	assert_int_equal(s.code(), -EEXIST);
+	assert_non_null(std::strstr(s.message().c_str(), "not a socket"));
+	assert_string_equal(slurp(cfg.socket_path).c_str(), "keep me\n");
+	std::string cmd = "rm -rf '" + dir + "'";
+	assert_int_equal(std::system(cmd.c_str()), 0);
+}
+
+// 32 idle connections locked every client out for ~29 s; a byte every 20 s held a slot forever.
+static void test_idle_and_slow_clients(void **)
+{
+	Rig rig(Mode::clinic, 0, nullptr, 500);
+	std::vector<int> idle;
+	for (int i = 0; i < 40; i++)
+		idle.push_back(connect_to(rig.cfg.socket_path));
+	auto t0 = std::chrono::steady_clock::now();
+	json st = rig.ask({{"cmd", "status"}});
+	double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	std::printf("  status with 40 idle connections open: %.0f ms\n", ms);
+	assert_true(st["ok"].get<bool>());
+	assert_true(ms < 400); // before the idle ones time out: they made room, nobody waited
+	// A client trickling a byte every 100 ms is closed at its deadline, not kept alive.
+	int slow = connect_to(rig.cfg.socket_path);
+	const std::string req = "{\"cmd\": \"status\", \"pad\": \"" + std::string(40, 'x') + "\"}\n";
+	t0 = std::chrono::steady_clock::now();
+	bool closed = false;
+	for (size_t i = 0; i < req.size() && !closed; i++) {
+		if (::send(slow, &req[i], 1, MSG_NOSIGNAL) != 1)
+			closed = true;
+		std::this_thread::sleep_for(std::chrono::milliseconds(100));
+		char c;
+		ssize_t n = recv(slow, &c, 1, MSG_DONTWAIT);
+		if (n == 0 || (n < 0 && errno != EAGAIN))
+			closed = true;
+	}
+	ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+	std::printf("  trickling client closed after %.0f ms\n", ms);
+	assert_true(closed);
+	assert_true(ms < 1500);
+	close(slow);
+	for (int fd : idle)
+		close(fd);
+	bool logged = false;
+	{
+		std::lock_guard<std::mutex> lock(log_mu);
+		for (const std::string &l : log_lines)
+			logged = logged || l.find("control: closed") != std::string::npos;
+	}
+	assert_true(logged);
+	assert_true(rig.scan("AFTER-SLOW")["ok"].get<bool>());
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
@@ -462,6 +584,9 @@ int main()
 		cmocka_unit_test(test_frames_from_different_triggers),
 		cmocka_unit_test(test_reconstruction_failure),
 		cmocka_unit_test(test_check_capture_skew),
+		cmocka_unit_test(test_second_instance_refused),
+		cmocka_unit_test(test_socket_path_not_a_socket),
+		cmocka_unit_test(test_idle_and_slow_clients),
 	};
 	return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -29,6 +29,8 @@ static void test_capture_one_trigger(void **state)
 	struct fscan_frame_set *set = NULL;
 	r = fscan_camera_collect(cam, 5000, &set);
 	printf("libcamera collect -> %d\n", r);
+	for (int c = 0; r < 0 && c < fscan_camera_count(cam); c++)
+		printf("  camera %d: status %d\n", c, fscan_camera_frame_status(cam, (uint32_t)c));
 	assert_int_equal(r, 0);
 	assert_int_equal(set->count, (uint32_t)fscan_camera_count(cam));
 	for (uint32_t c = 0; c < set->count; c++) {

@@ -154,6 +154,7 @@ kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
 check "no file of the killed scan on the share" [ "$(visible_files KILL-1)" -eq 0 ]
 start_daemon </dev/null
 check "killed scan reported failed after restart" sh -c "\"$bin/facescan\" last --json | grep -q 'interrupted while writing'"
+check "last names the killed scan's patient and start" sh -c "\"$bin/facescan\" last | grep -q 'patient: *KILL-1' && \"$bin/facescan\" last | grep -q 'started: '"
 check "spool cleared" [ -z "$(ls "$T/spool/queue")" ]
 stop_daemon
 
@@ -171,10 +172,34 @@ check "no metadata before the mesh is complete" [ -z "$(ls "$T"/share/KILL-2/*.j
 start_daemon </dev/null
 for _ in $(seq 50); do [ "$(visible_files KILL-2)" -eq 5 ] && break; sleep 0.1; done
 check "delivery completed after restart" [ "$(visible_files KILL-2)" -eq 5 ]
+for _ in $(seq 30); do fs last | grep -q 'patient: *KILL-2' && break; sleep 0.1; done
+check "last shows the redelivered scan, delivered" sh -c "\"$bin/facescan\" last | grep -q 'patient: *KILL-2' && \"$bin/facescan\" last | grep -q ': delivered'"
 check "no temp file left on the share" [ "$(hidden_files)" -eq 0 ]
 check "no patient id in the daemon's log" sh -c "! grep -E 'E2E-1|UNPLUG|SPOOL-1|KILL-0|KILL-1|KILL-2' '$T/daemon.log'"
 check "a progress line per stage" sh -c "grep -c '\[[123]/3\]' '$T/daemon.log' | awk '{exit !(\$1 >= 9)}'"
 stop_daemon
+
+# ---- a second facescand on the same config is refused and touches nothing ----
+start_daemon <<CONF
+test_delay_write_ms = 1500
+CONF
+fs scan --patient LIVE-1 --press --no-wait >/dev/null
+check "writing before the second start" wait_state writing 50
+"$bin/facescand" --config "$T/facescand.conf" 2>"$T/second.err"; rc=$?
+check "second facescand refused (exit 1)" [ "$rc" -eq 1 ]
+check "it says another is running" grep -q "another facescand (pid $DPID) is running" "$T/second.err"
+check "the running scan is delivered" wait_state idle 80
+check "LIVE-1 on the share" [ "$(visible_files LIVE-1)" -eq 3 ]
+check "last says LIVE-1 delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered' && \"$bin/facescan\" last | grep -q LIVE-1"
+stop_daemon
+
+# ---- socket_path naming a regular file: refused, the file kept ----
+echo "keep me" >"$T/notasocket"
+sed "s|^socket_path = .*|socket_path = $T/notasocket|" "$T/facescand.conf" >"$T/file.conf"
+"$bin/facescand" --config "$T/file.conf" 2>"$T/file.err"; rc=$?
+check "socket_path on a regular file refused (exit 1)" [ "$rc" -eq 1 ]
+check "it says not a socket" grep -q "not a socket" "$T/file.err"
+check "the file is kept" [ "$(cat "$T/notasocket")" = "keep me" ]
 
 [ "$fails" -eq 0 ] || { echo "--- daemon log"; cat "$T/daemon.log"; }
 exit "$fails"

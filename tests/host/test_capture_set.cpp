@@ -6,6 +6,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <sys/stat.h>
+#include <sys/types.h>
 #include <unistd.h>
 
 #include <cstdio>
@@ -219,6 +220,182 @@ static void malformed_sets_name_file_and_field(void **)
 	}
 }
 
+// A calibration.yaml for small_set()'s two cameras with cam0's K, T and size given as YAML text.
+static std::string calibration_text(const std::string &k0, const std::string &t0, const std::string &size0,
+				    const std::string &size1 = "[ 160, 120 ]")
+{
+	auto mat = [](const std::string &key, int rows, int cols, const std::string &data) {
+		return key + ": !!opencv-matrix\n   rows: " + std::to_string(rows) + "\n   cols: " +
+		       std::to_string(cols) + "\n   dt: d\n   data: [ " + data + " ]\n";
+	};
+	std::string y = "%YAML:1.0\n---\ncamera_count: 2\nunits: mm\n";
+	for (int i = 0; i < 2; i++) {
+		std::string c = "cam" + std::to_string(i);
+		y += mat(c + "_K", 3, 3, i == 0 ? k0 : "400., 0., 80., 0., 400., 60., 0., 0., 1.");
+		y += mat(c + "_dist", 1, 5, "0., 0., 0., 0., 0.");
+		y += mat(c + "_R", 3, 3, "1., 0., 0., 0., 1., 0., 0., 0., 1.");
+		y += mat(c + "_T", 3, 1, i == 0 ? t0 : "10., 0., 550.");
+		y += c + "_size: " + (i == 0 ? size0 : size1) + "\n";
+	}
+	return y;
+}
+
+static const char *kK = "400., 0., 80., 0., 400., 60., 0., 0., 1.";
+static const char *kT = "0., 0., 550.";
+
+static Status read_calibration_text(const std::string &text, Calibration *ret)
+{
+	Dir d;
+	write_text(d / "calibration.yaml", text);
+	return read_calibration(d / "calibration.yaml", ret);
+}
+
+// Python's cv2.FileStorage writes a size as a 1x2 (or, transposed, 2x1) matrix, of int or of
+// double; C++ writes a cv::Size as a sequence. All mean the same size.
+static void size_as_sequence_or_matrix(void **)
+{
+	const char *forms[] = {
+		"[ 160, 120 ]",
+		"!!opencv-matrix\n   rows: 1\n   cols: 2\n   dt: i\n   data: [ 160, 120 ]",
+		"!!opencv-matrix\n   rows: 2\n   cols: 1\n   dt: i\n   data: [ 160, 120 ]",
+		"!!opencv-matrix\n   rows: 1\n   cols: 2\n   dt: d\n   data: [ 160., 120. ]",
+		"!!opencv-matrix\n   rows: 2\n   cols: 1\n   dt: d\n   data: [ 1.6e+02, 1.2e+02 ]",
+		"[ 160., 120. ]",
+	};
+	for (const char *f : forms) {
+		Calibration c;
+		Status st = read_calibration_text(calibration_text(kK, kT, f), &c);
+		std::printf("  %s -> %s\n", f, st.ok() ? "ok" : st.message().c_str());
+		assert_true(st.ok());
+		assert_int_equal(c.cameras[0].size.width, 160);
+		assert_int_equal(c.cameras[0].size.height, 120);
+	}
+}
+
+static void implausible_sizes_refused(void **)
+{
+	struct Case {
+		const char *size, *needle;
+	} cases[] = {
+		{"[ 160.5, 120 ]", "fractional"},
+		{"!!opencv-matrix\n   rows: 1\n   cols: 2\n   dt: d\n   data: [ 160.25, 120. ]", "fractional"},
+		{"[ -160, 120 ]", "plausible"},
+		{"[ 0, 120 ]", "plausible"},
+		{"[ 100000, 120 ]", "plausible"},
+		{"[ 160, 120, 3 ]", "[width, height]"},
+		{"!!opencv-matrix\n   rows: 2\n   cols: 2\n   dt: i\n   data: [ 160, 120, 1, 1 ]", "1x2"},
+		{"\"160x120\"", "[width, height]"},
+		{"[ .nan, 120 ]", "cam0_size"},
+	};
+	for (const Case &k : cases) {
+		Calibration c;
+		Status st = read_calibration_text(calibration_text(kK, kT, k.size), &c);
+		std::printf("  %s -> %s\n", k.size, st.message().c_str());
+		assert_int_equal(st.code(), -EINVAL);
+		assert_non_null(std::strstr(st.message().c_str(), "cam0_size"));
+		assert_non_null(std::strstr(st.message().c_str(), k.needle));
+	}
+	// Sides each fine, the area not: 10000x10000 is 100 MP (300 MB a frame).
+	Calibration c;
+	Status st = read_calibration_text(calibration_text(kK, kT, "[ 10000, 10000 ]", "[ 10000, 10000 ]"), &c);
+	std::printf("  10000x10000 -> %s\n", st.message().c_str());
+	assert_int_equal(st.code(), -EINVAL);
+	assert_non_null(std::strstr(st.message().c_str(), "MP"));
+}
+
+// Focal lengths and translations a typo or a unit error makes: refused, naming the field.
+static void implausible_geometry_refused(void **)
+{
+	struct Case {
+		std::string k, t;
+		const char *needle;
+	} cases[] = {
+		{"1e308, 0., 80., 0., 1e308, 60., 0., 0., 1.", kT, "focal length"},
+		{"1e-300, 0., 80., 0., 1e-300, 60., 0., 0., 1.", kT, "focal length"},
+		{"400., 0., 80., 0., 400., 60., 0., 0., 1.", "1e308, 0., 550.", "10 m"},
+		{"400., 0., 80., 0., 400., 60., 0., 0., 1.", "0., 0., 55000.", "10 m"},
+		{"400., 0., 8000., 0., 400., 60., 0., 0., 1.", kT, "principal point"},
+		{"400., 0., 80., 0., 400., 60., 0., 1., 1.", kT, "camera matrix"},
+	};
+	for (const Case &k : cases) {
+		Calibration c;
+		Status st = read_calibration_text(calibration_text(k.k, k.t, "[ 160, 120 ]"), &c);
+		std::printf("  K=[%s] T=[%s] -> %s\n", k.k.c_str(), k.t.c_str(), st.message().c_str());
+		assert_int_equal(st.code(), -EINVAL);
+		assert_non_null(std::strstr(st.message().c_str(), k.needle));
+	}
+	Calibration c;
+	assert_true(read_calibration_text(calibration_text(kK, kT, "[ 160, 120 ]"), &c).ok());
+}
+
+// Hostile files: each is a clear error, never a crash, a hang or a huge allocation.
+static void hostile_files_refused(void **)
+{
+	{
+		Dir d; // ~40,000 nested '[' overflowed OpenCV's recursive parser (SIGSEGV)
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		write_text(d / "calibration.yaml", "%YAML:1.0\n---\ncamera_count: " + std::string(40000, '[') + "\n");
+		expect_error(d, -EINVAL, {"calibration.yaml", "nested"});
+	}
+	{
+		Dir d; // a '#' comment or a quoted ']' does not hide real nesting
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		std::string y = "%YAML:1.0\n---\nx: ";
+		for (int i = 0; i < 100; i++)
+			y += "[ \"]\", ";
+		write_text(d / "calibration.yaml", y + "\n");
+		expect_error(d, -EINVAL, {"calibration.yaml", "nested"});
+	}
+	{
+		Dir d;
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		write_text(d / "calibration.yaml", "%YAML:1.0\n# " + std::string(2 << 20, 'x') + "\n");
+		expect_error(d, -EFBIG, {"calibration.yaml", "bytes"});
+	}
+	{
+		Dir d; // a JSON this deep crashed the recursive dump of trigger_report
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		write_text(d / "capture.json", "{\"scan_id\": \"a\", \"pattern\": \"p\", \"trigger_report\": " +
+						       std::string(100000, '[') + std::string(100000, ']') + "}");
+		expect_error(d, -EINVAL, {"capture.json", "nested"});
+	}
+	{
+		Dir d; // a directory named capture.json threw std::ios_base::failure (SIGABRT)
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		unlink((d / "capture.json").c_str());
+		assert_int_equal(mkdir((d / "capture.json").c_str(), 0755), 0);
+		expect_error(d, -EINVAL, {"capture.json", "not a regular file"});
+	}
+	{
+		Dir d; // a FIFO named calibration.yaml or cam0.png blocked the reader forever
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		unlink((d / "cam0.png").c_str());
+		assert_int_equal(mkfifo((d / "cam0.png").c_str(), 0644), 0);
+		alarm(20); // a hang fails the test instead of stalling the suite
+		expect_error(d, -EINVAL, {"cam0.png", "not a regular file"});
+		unlink((d / "calibration.yaml").c_str());
+		assert_int_equal(mkfifo((d / "calibration.yaml").c_str(), 0644), 0);
+		expect_error(d, -EINVAL, {"calibration.yaml", "not a regular file"});
+		alarm(0);
+	}
+	{
+		// A PNG whose header claims 20000x20000 (its pixel data cut short): refused for its
+		// size before decoding, not decoded into 1.2 GB and then found corrupt.
+		Dir d;
+		assert_true(write_capture_set(d.path, small_set(false)).ok());
+		std::vector<uchar> png;
+		assert_true(cv::imencode(".png", cv::Mat(120, 160, CV_8UC3, cv::Scalar::all(0)), png));
+		auto put32 = [&](size_t at, uint32_t v) {
+			for (int b = 0; b < 4; b++)
+				png[at + size_t(b)] = uchar(v >> (24 - 8 * b));
+		};
+		put32(16, 20000);
+		put32(20, 20000);
+		std::ofstream(d / "cam0.png", std::ios::binary).write(reinterpret_cast<char *>(png.data()), long(png.size()));
+		expect_error(d, -EINVAL, {"cam0.png", "20000x20000", "does not match"});
+	}
+}
+
 static void writer_refuses_inconsistent_sets(void **)
 {
 	Dir d;
@@ -239,6 +416,10 @@ int main(void)
 		cmocka_unit_test(textures_are_optional),
 		cmocka_unit_test(malformed_sets_name_file_and_field),
 		cmocka_unit_test(writer_refuses_inconsistent_sets),
+		cmocka_unit_test(size_as_sequence_or_matrix),
+		cmocka_unit_test(implausible_sizes_refused),
+		cmocka_unit_test(implausible_geometry_refused),
+		cmocka_unit_test(hostile_files_refused),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

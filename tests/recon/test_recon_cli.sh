@@ -61,6 +61,35 @@ expect_failure unknown-pattern "$tmp/badid" "fs-l9-99x99-s7"
 make_set "$tmp/nocal"; rm "$tmp/nocal/calibration.yaml"
 expect_failure missing-calibration "$tmp/nocal" "calibration.yaml"
 
+# Outputs that would replace an input or another output are refused (exit 2) before anything
+# is read, and every file of the set is left as it was.
+make_set "$tmp/own"
+cp "$tmp/own/calibration.yaml" "$tmp/own/ground_truth.ply"
+ln -s "$tmp/own/cam1.png" "$tmp/cam1link.png"
+(cd "$tmp/own" && md5sum * >"$tmp/own.md5")
+expect_refused() { # name expected-substring args...
+	name=$1 want=$2; shift 2
+	"$bin" recon "$tmp/own" "$@" >"$tmp/log" 2>&1
+	rc=$?
+	if [ $rc -ne 2 ]; then echo "FAIL: $name: exit $rc, want 2"; cat "$tmp/log"; fail=1; return; fi
+	if ! grep -q -- "$want" "$tmp/log"; then echo "FAIL: $name: message does not say '$want':"; cat "$tmp/log"; fail=1; return; fi
+	if ! (cd "$tmp/own" && md5sum --quiet -c "$tmp/own.md5") || [ "$(ls "$tmp/own" | wc -l)" -ne 5 ]; then
+		echo "FAIL: $name: the capture set changed"; ls -la "$tmp/own"; fail=1; return
+	fi
+	echo "ok: $name: $(head -1 "$tmp/log")"
+}
+expect_refused texture-over-frame "input of the capture set" -o "$tmp/own/cam0.drc"
+expect_refused over-calibration ".drc" -o "$tmp/own/calibration.yaml"
+expect_refused ply-over-truth "input of the capture set" -o "$tmp/m.drc" --ply "$tmp/own/ground_truth.ply"
+expect_refused report-over-meta "input of the capture set" -o "$tmp/m.drc" --report "$tmp/own/capture.json"
+expect_refused ply-named-drc ".ply" -o "$tmp/d.drc" --ply "$tmp/d.drc"
+expect_refused mesh-named-png "ending in .drc" -o "$tmp/m.png"
+expect_refused via-dotdot "input of the capture set" -o "$tmp/own/../own/cam1.drc" --no-texture --ply "$tmp/x.ply" --report "$tmp/own/./capture.json"
+expect_refused via-symlink "input of the capture set" -o "$tmp/cam1link.drc"
+expect_refused no-such-dir "does not exist" -o "$tmp/nowhere/m.drc"
+ln "$tmp/own/capture.json" "$tmp/hard.json"
+expect_refused via-hardlink "input of the capture set" -o "$tmp/m.drc" --report "$tmp/hard.json"
+
 # Bad arguments are exit 2.
 "$bin" recon "$tmp/nocal" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: missing -o is exit 2" || { echo "FAIL: missing -o: exit $rc, want 2"; fail=1; }

@@ -4,16 +4,20 @@
 #include "pattern/pattern.hpp"
 #include "recon/pipeline.hpp"
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <dirent.h>
 #include <getopt.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -32,7 +36,8 @@ void recon_usage(FILE *out)
 		     "Draco mesh (positions in mm in the calibration's world frame, UVs, normals), the\n"
 		     "texture atlas beside it (OUT.png), and optionally a PLY copy and a JSON report of\n"
 		     "each stage's counts and timings (docs/recon.md). Every file is written atomically;\n"
-		     "on any error nothing is written.\n"
+		     "on any error nothing is written. No output may name a file of the capture set or\n"
+		     "another output, and each must end in its extension (refused with exit 2).\n"
 		     "  -o, --out OUT.drc     the Draco mesh (required)\n"
 		     "  --ply OUT.ply         also write a PLY (binary, with UVs or colours)\n"
 		     "  --report OUT.json     write the stage report\n"
@@ -45,11 +50,148 @@ void recon_usage(FILE *out)
 
 static std::string texture_path(const std::string &drc)
 {
-	const size_t slash = drc.find_last_of('/');
-	const size_t dot = drc.find_last_of('.');
-	if (dot != std::string::npos && (slash == std::string::npos || dot > slash))
-		return drc.substr(0, dot) + ".png";
-	return drc + ".png";
+	const size_t n = drc.size();
+	return n > 4 && drc.compare(n - 4, 4, ".drc") == 0 ? drc.substr(0, n - 4) + ".png" : drc + ".png";
+}
+
+static bool ends_with(const std::string &s, const char *suffix)
+{
+	const size_t n = std::strlen(suffix);
+	return s.size() >= n && s.compare(s.size() - n, n, suffix) == 0;
+}
+
+// Where a path's directory entry lives: the real path of its directory plus its own name. A
+// rename onto the path replaces exactly that entry (a symlink there is replaced, not followed).
+static bool entry_of(const std::string &path, std::string *ret)
+{
+	const size_t slash = path.find_last_of('/');
+	const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
+	const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
+	if (name.empty() || name == "." || name == "..")
+		return false;
+	char *real = realpath(dir.c_str(), nullptr);
+	if (!real)
+		return false;
+	*ret = std::string(real) + (std::strcmp(real, "/") == 0 ? "" : "/") + name;
+	std::free(real);
+	return true;
+}
+
+// Whether `name` is one of a capture set's own files (docs/capture-format.md).
+static bool is_capture_file(const std::string &name)
+{
+	if (name == "calibration.yaml" || name == "capture.json" || name == "ground_truth.ply" ||
+	    name == "ground_truth_projectors.yaml")
+		return true;
+	size_t i = 3;
+	if (name.compare(0, 3, "cam") != 0 || name.size() <= i || !std::isdigit((unsigned char)name[i]))
+		return false;
+	while (i < name.size() && std::isdigit((unsigned char)name[i]))
+		i++;
+	const std::string rest = name.substr(i);
+	return rest == ".png" || rest == "_texture.png";
+}
+
+// Refuses outputs that would replace an input or each other: each output must have its own
+// extension, a directory that exists, and be neither a file of the capture set (by its
+// directory entry, by where an input's symlink points, or by inode) nor another output.
+static bool check_outputs(const std::string &capture_dir, const std::vector<std::pair<std::string, const char *>> &outs,
+			  std::string *ret_why)
+{
+	struct Input {
+		std::string entry, target;
+		dev_t dev = 0;
+		ino_t ino = 0;
+	};
+	std::vector<Input> inputs;
+	if (DIR *d = opendir(capture_dir.c_str())) {
+		while (dirent *e = readdir(d)) {
+			if (!is_capture_file(e->d_name))
+				continue;
+			Input in;
+			const std::string path = capture_dir + "/" + e->d_name;
+			if (!entry_of(path, &in.entry))
+				continue;
+			if (char *t = realpath(path.c_str(), nullptr)) {
+				in.target = t;
+				std::free(t);
+			}
+			struct stat st;
+			if (stat(path.c_str(), &st) == 0) {
+				in.dev = st.st_dev;
+				in.ino = st.st_ino;
+			}
+			inputs.push_back(in);
+		}
+		closedir(d);
+	}
+	std::vector<std::string> seen;
+	for (const auto &[path, ext] : outs) {
+		if (!ends_with(path, ext) || path.size() == std::strlen(ext) || ends_with(path, (std::string("/") + ext).c_str())) {
+			*ret_why = path + ": must be a file name ending in " + ext;
+			return false;
+		}
+		std::string entry;
+		if (!entry_of(path, &entry)) {
+			*ret_why = path + ": its directory does not exist";
+			return false;
+		}
+		struct stat st;
+		const bool exists = stat(path.c_str(), &st) == 0;
+		if (exists && !S_ISREG(st.st_mode)) {
+			*ret_why = path + ": exists and is not a regular file";
+			return false;
+		}
+		for (const Input &in : inputs)
+			if (entry == in.entry || entry == in.target ||
+			    (exists && st.st_dev == in.dev && st.st_ino == in.ino)) {
+				*ret_why = path + ": is an input of the capture set (" + in.entry + "); choose another name";
+				return false;
+			}
+		for (const std::string &other : seen)
+			if (entry == other) {
+				*ret_why = path + ": names the same file as another output";
+				return false;
+			}
+		seen.push_back(entry);
+	}
+	return true;
+}
+
+// What the operator must hear about a reconstruction that succeeded but is suspect. Warned,
+// not refused: the mesh may still serve, and poor light or skin lowers the same figures.
+static std::vector<std::string> report_warnings(const recon::ReconReport &r, const std::string &pattern_id)
+{
+	std::vector<std::string> out;
+	long detected = 0, decoded = 0;
+	for (const recon::CameraReport &c : r.cameras) {
+		detected += c.detected;
+		decoded += c.decoded;
+	}
+	// Measured on the default simulated scene: the projected pattern decodes 72-82 % of the
+	// squares per camera; another valid pattern id 5-15 %; real skin in a foreign booth 21-50 %.
+	if (detected > 0 && decoded * 5 < detected) {
+		char buf[256];
+		std::snprintf(buf, sizeof buf,
+			      "only %ld of %ld squares (%.0f %%) decoded with pattern %s: if the projectors threw "
+			      "another slide, capture.json names the wrong pattern and the mesh is incomplete",
+			      decoded, detected, 100.0 * double(decoded) / double(detected), pattern_id.c_str());
+		out.push_back(buf);
+	}
+	for (const recon::CameraReport &c : r.cameras) {
+		int matched = 0;
+		std::string pairs;
+		for (const recon::PairReport &p : r.pairs)
+			if (p.cam_a == c.camera || p.cam_b == c.camera) {
+				matched += p.matches;
+				pairs += (pairs.empty() ? "" : ", ") + std::to_string(p.cam_a) + "-" + std::to_string(p.cam_b);
+			}
+		if (matched == 0)
+			out.push_back("camera " + std::to_string(c.camera) + " contributes nothing: " +
+				      std::to_string(c.decoded) + " of " + std::to_string(c.detected) +
+				      " squares decoded, 0 matched in pair(s) " + (pairs.empty() ? "none" : pairs));
+	}
+	return out;
 }
 
 // Writes the debug overlays as DIR/<name>.png and the clouds as DIR/<name>.ply (colour =
@@ -138,6 +280,19 @@ int recon_main(int argc, char **argv)
 		return 2;
 	}
 	const std::string dir = argv[optind];
+	// Checked before anything is read or computed, so a wrong name costs nothing and loses nothing.
+	std::vector<std::pair<std::string, const char *>> outs = {{out, ".drc"}};
+	if (params.texture_enabled)
+		outs.push_back({texture_path(out), ".png"});
+	if (!ply.empty())
+		outs.push_back({ply, ".ply"});
+	if (!report_path.empty())
+		outs.push_back({report_path, ".json"});
+	std::string why;
+	if (!check_outputs(dir, outs, &why)) {
+		std::fprintf(stderr, "facescan recon: %s\n", why.c_str());
+		return 2;
+	}
 
 	CaptureSet set;
 	Status s = read_capture_set(dir, &set);
@@ -201,8 +356,16 @@ int recon_main(int argc, char **argv)
 	rusage ru {};
 	if (getrusage(RUSAGE_SELF, &ru) == 0)
 		report.peak_rss_kb = ru.ru_maxrss;
-	if (!report_path.empty())
-		outputs.push_back({report_path, recon::report_json(report)});
+	const std::vector<std::string> warnings = report_warnings(report, set.meta.pattern_id);
+	if (!report_path.empty()) {
+		nlohmann::json j = nlohmann::json::parse(recon::report_json(report), nullptr, false);
+		if (j.is_object()) {
+			j["warnings"] = warnings;
+			outputs.push_back({report_path, j.dump(1) + "\n"});
+		} else {
+			outputs.push_back({report_path, recon::report_json(report)});
+		}
+	}
 	for (size_t i = 0; i < outputs.size(); ++i) {
 		s = write_file_atomic(outputs[i].path, outputs[i].bytes.data(), outputs[i].bytes.size());
 		if (!s.ok()) {
@@ -216,6 +379,8 @@ int recon_main(int argc, char **argv)
 	for (const recon::StageTime &t : report.stages)
 		if (t.name == "total")
 			total = t.ms;
+	for (const std::string &w : warnings)
+		std::fprintf(stderr, "facescan recon: warning: %s\n", w.c_str());
 	std::printf("facescan recon: %s: %d vertices, %d triangles, corner multiplier %.1fx, %.0f ms\n",
 		    out.c_str(), report.vertices, report.triangles, report.corner_multiplier, total);
 	return 0;
