@@ -50,21 +50,26 @@ Camera frame_mesh(const recon::Mesh &mesh, double azimuth_deg, int width, int he
 	return c;
 }
 
-Status render(const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr, cv::Mat *ret_mask)
+namespace {
+
+Status build_tracer(const recon::Mesh &mesh, sim::Tracer *tracer)
 {
 	if (mesh.positions.empty() || mesh.triangles.empty())
 		return Status::error(-EINVAL, "preview: empty mesh");
-	if (cam.width <= 0 || cam.height <= 0 || cam.width > 8192 || cam.height > 8192)
-		return Status::error(-EINVAL, "preview: image size out of range");
 	sim::Surface surf;
 	surf.mesh.vertices.reserve(mesh.positions.size());
 	for (const cv::Point3f &p : mesh.positions)
 		surf.mesh.vertices.emplace_back(p.x, p.y, p.z);
 	surf.mesh.triangles = mesh.triangles;
-	sim::Tracer tracer;
-	Status s = tracer.build({surf});
-	if (!s.ok())
-		return s;
+	return tracer->build({surf});
+}
+
+// One view through an already built tracer (the thumbnail's three views share one BVH).
+Status render_traced(const sim::Tracer &tracer, const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr,
+		     cv::Mat *ret_mask)
+{
+	if (cam.width <= 0 || cam.height <= 0 || cam.width > 8192 || cam.height > 8192)
+		return Status::error(-EINVAL, "preview: image size out of range");
 	const cv::Vec3d fwd = cv::normalize(cam.target - cam.eye);
 	const cv::Vec3d right = cv::normalize(fwd.cross(cv::Vec3d(0, 1, 0)));
 	const cv::Vec3d up = right.cross(fwd);
@@ -114,13 +119,28 @@ Status render(const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr, cv::
 	return {};
 }
 
+} // namespace
+
+Status render(const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr, cv::Mat *ret_mask)
+{
+	sim::Tracer tracer;
+	Status s = build_tracer(mesh, &tracer);
+	if (!s.ok())
+		return s;
+	return render_traced(tracer, mesh, cam, ret_bgr, ret_mask);
+}
+
 Status thumbnail(const recon::Mesh &mesh, int view_width, int view_height, cv::Mat *ret_bgr)
 {
+	sim::Tracer tracer;
+	Status s = build_tracer(mesh, &tracer);
+	if (!s.ok())
+		return s;
 	cv::Mat out(view_height, 3 * view_width, CV_8UC3);
 	const double azimuths[3] = {-45, 0, 45};
 	for (int k = 0; k < 3; ++k) {
 		cv::Mat view;
-		Status s = render(mesh, frame_mesh(mesh, azimuths[k], view_width, view_height), &view, nullptr);
+		s = render_traced(tracer, mesh, frame_mesh(mesh, azimuths[k], view_width, view_height), &view, nullptr);
 		if (!s.ok())
 			return s;
 		view.copyTo(out(cv::Rect(k * view_width, 0, view_width, view_height)));
