@@ -294,7 +294,9 @@ static void test_real_worker_on_a_simulated_set(void **)
 		return;
 	}
 	TmpDir d;
-	const facescan::sim::Rig rig = facescan::sim::default_rig();
+	// Half resolution: this checks the worker's plumbing, tests/recon the reconstruction.
+	facescan::sim::Rig rig = facescan::sim::default_rig();
+	assert_true(facescan::sim::scale_rig(0.5, &rig).ok());
 	facescan::sim::Scene scene;
 	assert_true(facescan::sim::scene_by_name("default", &scene).ok());
 	facescan::Pattern pattern;
@@ -326,7 +328,7 @@ static void test_real_worker_on_a_simulated_set(void **)
 	assert_true(out.png.size() > 8 && out.png.compare(1, 3, "PNG") == 0);
 	const double completeness = out.quality["accuracy"]["completeness"].get<double>();
 	std::printf("  real worker: %ld vertices, completeness %.1f %%\n", out.vertices, 100 * completeness);
-	assert_true(completeness >= 0.8);
+	assert_true(completeness >= 0.5);
 	bool detect = false, worker = false;
 	for (const auto &st : out.stage_ms) {
 		detect = detect || st.first == "detect";
