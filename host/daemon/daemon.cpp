@@ -674,7 +674,11 @@ struct Daemon::Impl {
 		post({Msg::Kind::reconstructed, recon_ms,
 		      "[2/3] reconstructed " + std::to_string(out.vertices) + " vertices in " +
 			      std::to_string(static_cast<long>(recon_ms)) + " ms",
-		      false, {{"vertices", out.vertices}, {"faces", out.faces}, {"recon_stage_ms", recon_stages}}});
+		      false,
+		      {{"vertices", out.vertices},
+		       {"faces", out.faces},
+		       {"recon_stage_ms", recon_stages},
+		       {"warnings", out.quality.is_object() ? out.quality.value("warnings", json::array()) : json::array()}}});
 
 		// writing: spool (the commit point), then the share
 		auto t2 = Clock::now();
@@ -767,6 +771,14 @@ struct Daemon::Impl {
 			current["vertices"] = m.data["vertices"];
 			current["faces"] = m.data["faces"];
 			current["recon_stage_ms"] = m.data["recon_stage_ms"];
+			// A suspect scan (wrong pattern, a camera that adds nothing) is said where the
+			// operator looks: the log and `facescan last`, not only the metadata.
+			if (m.data["warnings"].is_array() && !m.data["warnings"].empty()) {
+				current["warnings"] = m.data["warnings"];
+				for (const auto &w : m.data["warnings"])
+					if (w.is_string())
+						log(LOG_WARNING, "scan %s: %s", sid().c_str(), w.get<std::string>().c_str());
+			}
 			current["state"] = "writing";
 			progress("writing", m.text + "; [3/3] writing");
 			break;
