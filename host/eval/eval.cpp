@@ -4,10 +4,13 @@
 #include "recon/fusion.hpp"
 #include "recon/raster.hpp"
 
+#include <opencv2/imgproc.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_map>
+#include <unordered_set>
 
 #include <unistd.h>
 
@@ -106,8 +109,37 @@ double MeshDistance::distance(const cv::Point3d &p, double max_mm) const
 	return best <= max_mm ? best : std::numeric_limits<double>::infinity();
 }
 
+// The slide masks a simulated set records next to its projectors (absent = whole slides).
+static Status read_slide_masks(const std::string &path, size_t projectors,
+			       std::vector<std::vector<cv::Point2d>> *ret_masks)
+{
+	std::vector<std::vector<cv::Point2d>> masks(projectors);
+	try {
+		cv::FileStorage fs(path, cv::FileStorage::READ);
+		for (size_t j = 0; j < projectors; ++j) {
+			const std::string key = "cam" + std::to_string(j) + "_slide_mask";
+			const cv::FileNode n = fs[key];
+			if (n.empty())
+				continue;
+			if (!n.isSeq() || n.size() < 6 || n.size() % 2)
+				return Status::error(-EINVAL, path + ": field '" + key +
+								      "' must be a list x0, y0, x1, y1, ... of at least 3 points");
+			for (size_t k = 0; k < n.size(); k += 2) {
+				if (!n[int(k)].isReal() && !n[int(k)].isInt())
+					return Status::error(-EINVAL, path + ": field '" + key + "' holds a non-number");
+				masks[j].emplace_back(double(n[int(k)]), double(n[int(k + 1)]));
+			}
+		}
+	} catch (const cv::Exception &e) {
+		return Status::error(-EINVAL, path + ": " + e.msg);
+	}
+	*ret_masks = std::move(masks);
+	return {};
+}
+
 Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
-			 std::vector<CameraModel> *ret_projectors)
+			 std::vector<CameraModel> *ret_projectors,
+			 std::vector<std::vector<cv::Point2d>> *ret_masks)
 {
 	const std::string mesh_path = capture_dir + "/ground_truth.ply";
 	const std::string projectors_path = capture_dir + "/ground_truth_projectors.yaml";
@@ -116,13 +148,42 @@ Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 	recon::Mesh truth;
 	Status s = mesh_io::read_ply(mesh_path, &truth);
 	Calibration projectors;
-	if (s.ok() && access(projectors_path.c_str(), F_OK) == 0)
+	std::vector<std::vector<cv::Point2d>> masks;
+	if (s.ok() && access(projectors_path.c_str(), F_OK) == 0) {
 		s = read_calibration(projectors_path, &projectors);
+		if (s.ok() && ret_masks)
+			s = read_slide_masks(projectors_path, projectors.cameras.size(), &masks);
+	}
 	if (!s.ok())
 		return s;
 	*ret_truth = std::move(truth);
 	*ret_projectors = std::move(projectors.cameras);
+	if (ret_masks)
+		*ret_masks = std::move(masks);
 	return {};
+}
+
+std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, const std::vector<cv::Point3f> &normals,
+			  const EvalParams &params, const std::vector<cv::Point2d> &slide_mask)
+{
+	const std::vector<cv::Point3d> pts(mesh.positions.begin(), mesh.positions.end());
+	const cv::Mat depth = recon::render_depth(device, mesh.positions, mesh.triangles, params.depth_scale);
+	std::vector<char> v = recon::visible_in(device, depth, params.depth_scale, pts, params.occlusion_tolerance_mm);
+	const cv::Vec3d c = device.centre();
+	std::vector<cv::Point2f> poly(slide_mask.begin(), slide_mask.end());
+	for (size_t i = 0; i < pts.size(); ++i) {
+		const cv::Vec3d view = c - cv::Vec3d(pts[i]);
+		const cv::Vec3d n(normals[i].x, normals[i].y, normals[i].z);
+		if (n.dot(view) < params.min_cos * cv::norm(view))
+			v[i] = 0;
+		if (v[i] && !poly.empty()) {
+			// Only the slide's unmasked part throws light.
+			const cv::Vec3d x = device.K * (device.R * cv::Vec3d(pts[i]) + device.T);
+			v[i] = x[2] > 0 && cv::pointPolygonTest(poly, cv::Point2f(float(x[0] / x[2]), float(x[1] / x[2])),
+								   false) >= 0;
+		}
+	}
+	return v;
 }
 
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
@@ -132,6 +193,8 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		return Status::error(-EINVAL, "evaluate: the reconstruction has no triangles");
 	if (truth.positions.empty() || truth.triangles.empty())
 		return Status::error(-EINVAL, "evaluate: the ground truth has no triangles");
+	if (params.projector_masks.size() > projectors.size())
+		return Status::error(-EINVAL, "evaluate: more slide masks than projectors");
 	EvalResult r;
 	r.vertices = int(recon.positions.size());
 	r.triangles = int(recon.triangles.size());
@@ -158,28 +221,17 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	// Which truth points count: seen by >= min_cameras devices, lit by a projector if given.
 	std::vector<cv::Point3d> pts(truth.positions.begin(), truth.positions.end());
 	const std::vector<cv::Point3f> normals = recon::vertex_normals(truth.positions, truth.triangles);
-	auto seen_by = [&](const CameraModel &dev) {
-		const cv::Mat depth = recon::render_depth(dev, truth.positions, truth.triangles, params.depth_scale);
-		std::vector<char> v = recon::visible_in(dev, depth, params.depth_scale, pts,
-							params.occlusion_tolerance_mm);
-		const cv::Vec3d c = dev.centre();
-		for (size_t i = 0; i < pts.size(); ++i) {
-			const cv::Vec3d view = c - cv::Vec3d(pts[i]);
-			const cv::Vec3d n(normals[i].x, normals[i].y, normals[i].z);
-			if (n.dot(view) < params.min_cos * cv::norm(view))
-				v[i] = 0;
-		}
-		return v;
-	};
 	std::vector<int> cams_seeing(pts.size(), 0);
 	for (const CameraModel &cam : cameras) {
-		const std::vector<char> v = seen_by(cam);
+		const std::vector<char> v = seen_by(cam, truth, normals, params);
 		for (size_t i = 0; i < pts.size(); ++i)
 			cams_seeing[i] += v[i];
 	}
 	std::vector<char> lit(pts.size(), projectors.empty() ? 1 : 0);
-	for (const CameraModel &proj : projectors) {
-		const std::vector<char> v = seen_by(proj);
+	for (size_t j = 0; j < projectors.size(); ++j) {
+		const std::vector<char> v =
+			seen_by(projectors[j], truth, normals, params,
+				j < params.projector_masks.size() ? params.projector_masks[j] : std::vector<cv::Point2d>());
 		for (size_t i = 0; i < pts.size(); ++i)
 			lit[i] |= v[i];
 	}
@@ -199,6 +251,27 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		covered += r.truth_status[i];
 	}
 	r.completeness = r.truth_counted ? double(covered) / r.truth_counted : 0;
+
+	// Vertices on the counted surface: within a 2 mm cell (or a neighbouring one) of a counted
+	// truth point. The neck, shoulders or hair a booth also reconstructs do not count.
+	{
+		const double cell = 2.0;
+		auto key = [&](const cv::Point3d &p, int dx, int dy, int dz) {
+			const long long x = (long long)std::floor(p.x / cell) + dx, y = (long long)std::floor(p.y / cell) + dy,
+					z = (long long)std::floor(p.z / cell) + dz;
+			return (x * 73856093LL) ^ (y * 19349663LL) ^ (z * 83492791LL);
+		};
+		std::unordered_set<long long> counted;
+		for (size_t i = 0; i < pts.size(); ++i)
+			if (r.truth_status[i] >= 0)
+				counted.insert(key(pts[i], 0, 0, 0));
+		for (const cv::Point3f &v : recon.positions) {
+			bool near = false;
+			for (int k = 0; k < 27 && !near; ++k)
+				near = counted.count(key(cv::Point3d(v), k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1)) > 0;
+			r.face_vertices += near;
+		}
+	}
 	*ret_result = r;
 	return {};
 }

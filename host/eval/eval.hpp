@@ -41,6 +41,10 @@ struct EvalParams {
 	double depth_scale = 0.5;	// z-buffer resolution for visibility, relative to the device
 	double occlusion_tolerance_mm = 1.0;
 	double max_search_mm = 20;	// distances beyond this count as this (outliers)
+	/// Per projector (same order as `projectors`), the polygon of its slide that throws light,
+	/// in slide pixels; a point lights only where it projects inside. Empty (or an empty
+	/// polygon) = the whole slide. read_ground_truth() reads them from a simulated set.
+	std::vector<std::vector<cv::Point2d>> projector_masks;
 };
 
 struct EvalResult {
@@ -49,20 +53,34 @@ struct EvalResult {
 	int truth_points = 0;		// truth vertices
 	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)
 	int vertices = 0, triangles = 0;
+	int face_vertices = 0;		// vertices within ~2 mm of a counted truth point
 	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
 	std::vector<signed char> truth_status;
 };
 
 /// A simulated capture set's ground truth: CAPTURE_DIR/ground_truth.ply (the head, world mm) and,
 /// when the set records them, the projectors that lit it (ground_truth_projectors.yaml; left
-/// empty for older sets). -ENOENT when the set has no ground truth.
+/// empty for older sets). `ret_masks`, if given, gets each projector's slide mask (the file's
+/// `cam{j}_slide_mask: [x0, y0, x1, y1, ...]`; an empty polygon where it has none): pass them
+/// as EvalParams::projector_masks. -ENOENT when the set has no ground truth, -EINVAL for a
+/// malformed mask.
 Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
-			 std::vector<CameraModel> *ret_projectors);
+			 std::vector<CameraModel> *ret_projectors,
+			 std::vector<std::vector<cv::Point2d>> *ret_masks = nullptr);
+
+/// Per vertex of `mesh` (world mm; `normals` per vertex): 1 when `device` sees it unoccluded
+/// (params.depth_scale, params.occlusion_tolerance_mm) and faces it at least params.min_cos —
+/// and, when `slide_mask` is not empty, the point projects inside that polygon (a projector's
+/// slide mask; projectors are pinholes). The test behind evaluate()'s "seen" and "lit".
+std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, const std::vector<cv::Point3f> &normals,
+			  const EvalParams &params, const std::vector<cv::Point2d> &slide_mask = {});
 
 /// Compares `recon` with `truth` (both world mm). Truth points are the truth mesh's vertices
 /// that at least `min_cameras` cameras see unoccluded and front-facing — and, when
 /// `projectors` is not empty, that at least one projector lights (the pattern can only be
-/// measured where it falls). -EINVAL for an empty mesh.
+/// measured where it falls): faces it, is not shadowed and, where params.projector_masks gives
+/// the projector a mask, projects inside it. -EINVAL for an empty mesh, or more masks than
+/// projectors.
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
 		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result);
 

@@ -125,6 +125,42 @@ std::vector<cv::Point3f> vertex_normals(const std::vector<cv::Point3f> &position
 	return normals;
 }
 
+ViewFrame view_frame(const std::vector<cv::Point3d> &points, const std::vector<CameraModel> &cameras)
+{
+	// Centre behind the face (from the centroid, away from the cameras by the points' extent),
+	// axes from the cameras' mean viewing and up directions.
+	ViewFrame vf;
+	cv::Point3d centroid(0, 0, 0);
+	for (const cv::Point3d &p : points)
+		centroid += p;
+	if (!points.empty())
+		centroid *= 1.0 / double(points.size());
+	double extent = 1.0;
+	for (const cv::Point3d &p : points)
+		extent = std::max(extent, cv::norm(p - centroid));
+	cv::Vec3d towards(0, 0, 0), up(0, 0, 0);
+	for (const CameraModel &c : cameras) {
+		const cv::Vec3d d = c.centre() - cv::Vec3d(centroid);
+		towards += d * (1.0 / std::max(cv::norm(d), 1e-9));
+		up += c.R.t() * cv::Vec3d(0, -1, 0); // image "up" is the camera's -y
+	}
+	if (cv::norm(towards) < 1e-9)
+		towards = cv::Vec3d(0, 0, -1);
+	towards *= 1.0 / cv::norm(towards);
+	up -= towards * up.dot(towards);
+	if (cv::norm(up) < 1e-9) {
+		up = std::fabs(towards[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
+		up -= towards * up.dot(towards);
+	}
+	up *= 1.0 / cv::norm(up);
+	vf.towards = towards;
+	vf.up = up;
+	vf.right = up.cross(towards);
+	vf.extent = extent;
+	vf.centre = centroid - cv::Point3d(towards) * extent;
+	return vf;
+}
+
 Status fuse_models(const std::vector<PartialModel> &models, const std::vector<CameraModel> &cameras,
 		   const FusionParams &params, Mesh *ret_mesh, FusionStats *ret_stats)
 {
@@ -188,35 +224,14 @@ Status fuse_models(const std::vector<PartialModel> &models, const std::vector<Ca
 		stats.squares += centroid;
 	}
 
-	// One sheet over a view sphere: centre behind the face (from the centroid, away from the
-	// cameras by the points' extent), axes from the cameras' mean viewing and up directions.
-	cv::Point3d centroid(0, 0, 0);
-	for (const cv::Point3d &p : fused)
-		centroid += p;
-	centroid *= 1.0 / double(fused.size());
-	double extent = 1.0;
-	for (const cv::Point3d &p : fused)
-		extent = std::max(extent, cv::norm(p - centroid));
-	cv::Vec3d towards(0, 0, 0), up(0, 0, 0);
+	// One sheet over a view sphere around the head.
+	const ViewFrame vf = view_frame(fused, cameras);
 	std::vector<cv::Vec3d> centres;
-	for (const CameraModel &c : cameras) {
-		const cv::Vec3d cc = c.centre();
-		centres.push_back(cc);
-		const cv::Vec3d d = cc - cv::Vec3d(centroid);
-		towards += d * (1.0 / std::max(cv::norm(d), 1e-9));
-		up += c.R.t() * cv::Vec3d(0, -1, 0); // image "up" is the camera's -y
-	}
-	if (cv::norm(towards) < 1e-9)
-		towards = cv::Vec3d(0, 0, -1);
-	towards *= 1.0 / cv::norm(towards);
-	up -= towards * up.dot(towards);
-	if (cv::norm(up) < 1e-9) {
-		up = std::fabs(towards[1]) < 0.9 ? cv::Vec3d(0, 1, 0) : cv::Vec3d(1, 0, 0);
-		up -= towards * up.dot(towards);
-	}
-	up *= 1.0 / cv::norm(up);
-	const cv::Vec3d right = up.cross(towards);
-	const cv::Point3d centre = centroid - cv::Point3d(towards) * extent;
+	for (const CameraModel &c : cameras)
+		centres.push_back(c.centre());
+	const cv::Point3d centre = vf.centre;
+	const cv::Vec3d right = vf.right, up = vf.up, towards = vf.towards;
+	const double extent = vf.extent;
 	std::vector<cv::Point2d> sites(fused.size());
 	for (size_t k = 0; k < fused.size(); ++k) {
 		const cv::Vec3d d = cv::Vec3d(fused[k] - centre);

@@ -38,6 +38,15 @@ std::vector<double> border_distances(const PartialModel &model);
 cv::Point3d blend(const std::vector<cv::Point3d> &copies, const std::vector<double> &border_mm,
 		  double floor_mm);
 
+/// The view sphere both fusions mesh over: its centre behind the face (from the points' centroid,
+/// away from the cameras by the points' extent) and axes from the cameras' mean view and up.
+struct ViewFrame {
+	cv::Point3d centre;
+	cv::Vec3d right, up, towards;
+	double extent = 1; // the points' largest distance from their centroid, mm
+};
+ViewFrame view_frame(const std::vector<cv::Point3d> &points, const std::vector<CameraModel> &cameras);
+
 /// Fuses registered models into `ret_mesh` (positions, triangles, normals). `cameras` are the
 /// calibration's cameras (for the grazing test and the orientation of the sheet).
 Status fuse_models(const std::vector<PartialModel> &models, const std::vector<CameraModel> &cameras,

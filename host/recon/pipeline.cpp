@@ -73,7 +73,7 @@ Status check_input(const CaptureSet &set, const ReconParams &params)
 } // namespace
 
 Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
-		   ReconReport *ret_report)
+		   ReconReport *ret_report, ReconDebug *ret_debug)
 {
 	ReconReport report;
 	report.scan_id = set.meta.scan_id;
@@ -95,6 +95,11 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 							       &dets[size_t(c)]);
 		}
 	});
+	if (ret_debug)
+		for (size_t c = 0; c < n; ++c)
+			if (det_status[c].ok())
+				ret_debug->images.push_back({"cam" + std::to_string(c) + "_squares",
+							     draw_detections(set.frames[c], dets[c])});
 	for (size_t c = 0; c < n; ++c) {
 		if (!det_status[c].ok())
 			return Status::error(det_status[c].code(),
@@ -125,6 +130,9 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 							       ": " + s.message());
 		matches[p].cam_a = int(p);
 		matches[p].cam_b = int(p + 1);
+		if (ret_debug)
+			ret_debug->images.push_back({"pair" + std::to_string(p) + "_matches",
+						     draw_matches(set.frames[p], set.frames[p + 1], matches[p])});
 		PairReport pr;
 		pr.cam_a = int(p);
 		pr.cam_b = int(p + 1);
@@ -185,6 +193,53 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		return s;
 	timer.lap("fuse");
 
+	report.sparse_vertices = int(mesh.positions.size());
+	report.sparse_triangles = int(mesh.triangles.size());
+
+	// Dense: per pair, seeded by its sparse model, moved by the pair's registration, fused.
+	if (params.dense_enabled) {
+		std::vector<DenseCloud> clouds(n - 1);
+		for (size_t p = 0; p + 1 < n; ++p) {
+			DensePairDebug dbg;
+			s = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p], params.dense,
+				       &clouds[p], &report.pairs[p].dense, ret_debug ? &dbg : nullptr);
+			if (ret_debug && s.ok() && !dbg.left.empty()) {
+				const std::string name = "pair" + std::to_string(p);
+				double lo = 0, hi = 0;
+				cv::Mat finite = has_value(dbg.prior);
+				if (cv::countNonZero(finite) > 0)
+					cv::minMaxLoc(dbg.prior, &lo, &hi, nullptr, nullptr, finite);
+				cv::Mat overlay;
+				cv::addWeighted(dbg.left, 0.5, dbg.warped, 0.5, 0, overlay);
+				ret_debug->images.push_back({name + "_rectified_left", dbg.left});
+				ret_debug->images.push_back({name + "_warped_right", dbg.warped});
+				ret_debug->images.push_back({name + "_left_over_warped", overlay});
+				ret_debug->images.push_back({name + "_prior", colour_map(dbg.prior, lo, hi)});
+				ret_debug->images.push_back({name + "_disparity", colour_map(dbg.disparity, lo, hi)});
+				ret_debug->clouds.push_back({name + "_dense", clouds[p].points, clouds[p].confidence});
+			}
+			if (!s.ok())
+				return Status::error(s.code(), "pair " + std::to_string(p) + "-" +
+								       std::to_string(p + 1) + ": " + s.message());
+		}
+		for (const RegistrationPair &rp : report.registration) {
+			if (!rp.applied || rp.model < 0 || size_t(rp.model) >= clouds.size())
+				continue;
+			for (cv::Point3f &q : clouds[size_t(rp.model)].points)
+				q = cv::Point3f(rp.R * cv::Vec3d(q.x, q.y, q.z) + rp.T);
+		}
+		timer.lap("dense");
+		Mesh dense;
+		s = fuse_dense(clouds, cams, params.surface, &dense, &report.surface);
+		if (s.ok()) {
+			mesh = std::move(dense);
+			report.dense = true;
+		} else if (s.code() != -ENODATA) {
+			return s;
+		}
+		timer.lap("fuse_dense");
+	}
+
 	// Stage 10.
 	if (params.texture_enabled) {
 		s = texture_mesh(set.textures, set.frames, cams, params.texture, &mesh, &report.texture);
@@ -235,7 +290,20 @@ std::string report_json(const ReconReport &r)
 				 {"triangles", p.meshing.kept},
 				 {"triangles_dropped_long", p.meshing.dropped_long},
 				 {"triangles_dropped_grazing", p.meshing.dropped_grazing},
-				 {"median_edge_mm", p.meshing.median_edge_mm}});
+				 {"median_edge_mm", p.meshing.median_edge_mm},
+				 {"dense",
+				  {{"seeds", p.dense.seeds},
+				   {"prior_pixels", p.dense.prior_pixels},
+				   {"matched", p.dense.matched},
+				   {"coarse_pixels", p.dense.coarse_pixels},
+				   {"unlit", p.dense.unlit},
+				   {"low_confidence", p.dense.low_confidence},
+				   {"at_search_edge", p.dense.at_search_edge},
+				   {"steep", p.dense.steep},
+				   {"rim", p.dense.rim},
+				   {"islands", p.dense.islands},
+				   {"points", p.dense.points},
+				   {"median_seed_spacing_px", p.dense.median_spacing_px}}}});
 	j["pairs"] = pairs;
 	json reg = json::array();
 	for (const RegistrationPair &p : r.registration)
@@ -248,6 +316,11 @@ std::string report_json(const ReconReport &r)
 	j["fusion"] = {{"input_points", r.fusion.input_points}, {"vertices", r.fusion.vertices},
 		       {"merged", r.fusion.merged}, {"squares", r.fusion.squares}, {"triangles", r.fusion.triangles},
 		       {"median_edge_mm", r.fusion.meshing.median_edge_mm}};
+	j["dense"] = r.dense;
+	j["sparse"] = {{"vertices", r.sparse_vertices}, {"triangles", r.sparse_triangles}};
+	j["surface"] = {{"input_points", r.surface.input_points}, {"cells", r.surface.cells},
+			{"merged", r.surface.merged}, {"vertices", r.surface.vertices},
+			{"triangles", r.surface.triangles}, {"spacing_mm", r.surface.spacing_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},
 			{"vertex_colours", r.texture.vertex_colours},

@@ -4,15 +4,21 @@
 //
 //   detect (per camera, stages 1-3, 5) → match (per pair, 4) → triangulate (6) → mesh (7)
 //   → register (8) → fuse (9) → texture (10)
+// and, unless `dense_enabled` is off (`facescan recon --sparse`), the dense surface between 8 and
+// 10: dense matching per pair seeded by its sparse model (dense.hpp), registered by stage 8's
+// motions, fused over the view sphere (surface.hpp). The sparse mesh is then only reported.
 #pragma once
 
 #include "capture/capture_set.hpp"
 #include "common/status.hpp"
 #include "pattern/pattern.hpp"
+#include "recon/debug.hpp"
+#include "recon/dense.hpp"
 #include "recon/fusion.hpp"
 #include "recon/image_stages.hpp"
 #include "recon/meshing.hpp"
 #include "recon/registration.hpp"
+#include "recon/surface.hpp"
 #include "recon/texture.hpp"
 #include "recon/triangulate.hpp"
 #include "recon/types.hpp"
@@ -30,7 +36,11 @@ struct ReconParams {
 	RegistrationParams registration;
 	FusionParams fusion;
 	TextureParams texture;
+	DenseParams dense;
+	SurfaceParams surface;
 	bool texture_enabled = true;
+	/// Off: the paper's sparse mesh is the output (`--sparse`).
+	bool dense_enabled = true;
 	/// A camera whose frame yields fewer decoded squares than this has "no pattern".
 	int min_decoded_squares = 12;
 	/// Frames whose intensity standard deviation is below this are blank (all white/black).
@@ -57,6 +67,7 @@ struct PairReport {
 	int pruned = 0; // grown, guided or centroid-only squares dropped as off their neighbours' surface
 	TriangulateStats triangulate;
 	MeshingStats meshing;
+	DenseStats dense;
 };
 
 struct ReconReport {
@@ -65,7 +76,10 @@ struct ReconReport {
 	std::vector<CameraReport> cameras;
 	std::vector<PairReport> pairs;
 	std::vector<RegistrationPair> registration;
-	FusionStats fusion;
+	FusionStats fusion;   // the sparse mesh
+	SurfaceStats surface; // the dense one (when dense matching ran)
+	bool dense = false;   // the output is the dense surface
+	int sparse_vertices = 0, sparse_triangles = 0;
 	TextureStats texture;
 	/// Matched points (centroids + corners) over matched centroids, over the squares matched by
 	/// their code word: the paper's ~5x.
@@ -79,8 +93,10 @@ struct ReconReport {
 /// Reconstructs the face of `set` projected with `pattern`. Checks its input first: at least
 /// two cameras, one frame per camera matching its calibrated size, no blank frame, and a
 /// pattern found in every frame; each failure names the camera and the cause.
+/// `ret_debug`, when given, receives the overlays `facescan recon --debug` writes (debug.hpp); it
+/// is filled as far as the pipeline got, also when it fails.
 Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconParams &params, Mesh *ret_mesh,
-		   ReconReport *ret_report);
+		   ReconReport *ret_report, ReconDebug *ret_debug = nullptr);
 
 /// The report as JSON text (keys documented in docs/recon.md).
 std::string report_json(const ReconReport &report);

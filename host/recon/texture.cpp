@@ -43,11 +43,15 @@ Status texture_mesh(const std::vector<cv::Mat> &textures, const std::vector<cv::
 	// Per camera: projections and visibility of every vertex.
 	std::vector<std::vector<cv::Point2d>> px(nc);
 	std::vector<std::vector<char>> vis(nc);
-	for (size_t c = 0; c < nc; ++c) {
-		px[c] = project_points(cameras[c], pts);
-		const cv::Mat depth = render_depth(cameras[c], mesh->positions, mesh->triangles, params.depth_scale);
-		vis[c] = visible_in(cameras[c], depth, params.depth_scale, pts, params.occlusion_tolerance_mm);
-	}
+	cv::parallel_for_(cv::Range(0, int(nc)), [&](const cv::Range &r) {
+		for (int c = r.start; c < r.end; ++c) {
+			px[size_t(c)] = project_points(cameras[size_t(c)], pts);
+			const cv::Mat depth =
+				render_depth(cameras[size_t(c)], mesh->positions, mesh->triangles, params.depth_scale);
+			vis[size_t(c)] = visible_in(cameras[size_t(c)], depth, params.depth_scale, pts,
+						    params.occlusion_tolerance_mm);
+		}
+	});
 
 	// Best camera per triangle.
 	std::vector<int> best(nt, 0);
@@ -148,15 +152,16 @@ Status texture_mesh(const std::vector<cv::Mat> &textures, const std::vector<cv::
 
 	// Split vertices per chart: (vertex, camera) → output vertex with that chart's UV.
 	Mesh out;
-	std::map<std::pair<int, int>, int> split;
+	std::vector<int> split(nv * nc, -1); // (vertex, camera) → output vertex
 	const double aw = atlas_w, ah = atlas_h;
 	for (size_t t = 0; t < nt; ++t) {
 		const int c = best[t];
 		cv::Vec3i tri;
 		for (int k = 0; k < 3; ++k) {
 			const int v = mesh->triangles[t][k];
-			auto [it, fresh] = split.emplace(std::make_pair(v, c), int(out.positions.size()));
-			if (fresh) {
+			int &id = split[size_t(v) * nc + size_t(c)];
+			if (id < 0) {
+				id = int(out.positions.size());
 				out.positions.push_back(mesh->positions[size_t(v)]);
 				if (mesh->normals.size() == nv)
 					out.normals.push_back(mesh->normals[size_t(v)]);
@@ -166,7 +171,7 @@ Status texture_mesh(const std::vector<cv::Mat> &textures, const std::vector<cv::
 				const double w = (p.y + 0.5 - crop[size_t(c)].y) / ah;
 				out.uvs.emplace_back(float(std::clamp(u, 0.0, 1.0)), float(std::clamp(w, 0.0, 1.0)));
 			}
-			tri[k] = it->second;
+			tri[k] = id;
 		}
 		out.triangles.push_back(tri);
 	}

@@ -37,5 +37,31 @@ echo "truth points counted: recorded projectors $recorded, landscape rig named $
 [ $rc -eq 2 ] || { echo "FAIL: --scale 9 exited $rc, want 2"; fail=1; }
 "$bin" simulate --head-seed round --out "$out/x" 2>/dev/null; rc=$?
 [ $rc -eq 2 ] || { echo "FAIL: --head-seed round exited $rc, want 2"; fail=1; }
+# A random booth: its extra files, the same seed twice gives the same set, the written
+# calibration differs from the true one, and evaluate scores the truth against itself fully.
+for run in r1 r2; do
+	"$bin" simulate --booth random --seed 4 --scale 0.2 --no-texture --out "$out/$run" >"$out/$run.txt" || {
+		echo "FAIL: simulate --booth random exited $?"; exit 1; }
+done
+cat "$out/r1.txt"
+for f in booth.yaml ground_truth_calibration.yaml ground_truth_projectors.yaml calibration.yaml cam3.png; do
+	[ -s "$out/r1/$f" ] || { echo "FAIL: random booth: $f missing or empty"; fail=1; }
+	cmp -s "$out/r1/$f" "$out/r2/$f" || { echo "FAIL: random booth seed 4 twice: $f differs"; fail=1; }
+done
+cmp -s "$out/r1/calibration.yaml" "$out/r1/ground_truth_calibration.yaml" &&
+	{ echo "FAIL: the written calibration carries no error"; fail=1; }
+grep -q '^booth:' "$out/r1/booth.yaml" && grep -q 'calibration_error_px' "$out/r1/booth.yaml" ||
+	{ echo "FAIL: booth.yaml does not record the draw"; fail=1; }
+"$bin" simulate --config "$out/r1/booth.yaml" --scale 0.2 --no-texture --out "$out/again" >/dev/null ||
+	{ echo "FAIL: booth.yaml is not a rig file simulate reads"; fail=1; }
+self=$("$bin" evaluate "$out/r1/ground_truth.ply" "$out/r1" | sed -n 's/^completeness: \([0-9.]*\) %.*/\1/p')
+echo "random booth: the truth against itself is $self % complete"
+[ "$self" = "100.0" ] || { echo "FAIL: evaluate on a random booth set"; fail=1; }
+for args in "--booth random --config $rigs/default.yaml" "--booth random --scene dark" "--booth nosuch" "--head nosuch" \
+	"--head random --head-seed canonical"; do
+	# shellcheck disable=SC2086
+	"$bin" simulate $args --out "$out/x" 2>/dev/null; rc=$?
+	[ $rc -eq 2 ] || { echo "FAIL: simulate $args exited $rc, want 2"; fail=1; }
+done
 [ $fail -eq 0 ] && echo "ok: facescan simulate wrote a complete capture set"
 exit $fail

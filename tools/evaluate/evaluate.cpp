@@ -94,7 +94,7 @@ int evaluate_main(int argc, char **argv)
 	// the rig named, else the built-in default rig.
 	std::vector<CameraModel> projectors;
 	if (s.ok())
-		s = eval::read_ground_truth(dir, &truth, &projectors);
+		s = eval::read_ground_truth(dir, &truth, &projectors, &params.projector_masks);
 	Calibration cal;
 	if (s.ok())
 		s = read_calibration(dir + "/calibration.yaml", &cal);
@@ -103,6 +103,7 @@ int evaluate_main(int argc, char **argv)
 		if (!rig_path.empty())
 			s = sim::load_rig(rig_path, &rig);
 		projectors = sim::projector_models(rig);
+		params.projector_masks = sim::projector_masks(rig);
 	}
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
@@ -159,7 +160,7 @@ int evaluate_main(int argc, char **argv)
 	std::printf("completeness: %.1f %% of %d truth points (seen by >= 2 cameras and lit) within %.2f mm\n",
 		    100.0 * r.completeness, r.truth_counted, params.completeness_mm);
 	if (!json_path.empty()) {
-		const nlohmann::json j = {{"vertices", r.vertices},	   {"triangles", r.triangles},
+		const nlohmann::json j = {{"vertices", r.vertices},	   {"face_vertices", r.face_vertices},	   {"triangles", r.triangles},
 					  {"rms_mm", r.rms_mm},		   {"median_mm", r.median_mm},
 					  {"p95_mm", r.p95_mm},		   {"max_mm", r.max_mm},
 					  {"completeness", r.completeness}, {"truth_points", r.truth_points},

@@ -9,11 +9,13 @@
 
 #include <dirent.h>
 #include <getopt.h>
-#include <sys/stat.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -22,11 +24,13 @@
 
 namespace facescan::cli {
 
-static void recon_usage(FILE *out)
+namespace {
+
+void recon_usage(FILE *out)
 {
 	std::fprintf(out,
 		     "usage: facescan recon CAPTURE_DIR -o OUT.drc [--ply OUT.ply] [--report OUT.json]\n"
-		     "                      [--no-texture]\n"
+		     "                      [--no-texture] [--sparse] [--debug DIR]\n"
 		     "\n"
 		     "Reconstructs the face of a capture set (docs/capture-format.md) and writes it as a\n"
 		     "Draco mesh (positions in mm in the calibration's world frame, UVs, normals), the\n"
@@ -37,7 +41,11 @@ static void recon_usage(FILE *out)
 		     "  -o, --out OUT.drc     the Draco mesh (required)\n"
 		     "  --ply OUT.ply         also write a PLY (binary, with UVs or colours)\n"
 		     "  --report OUT.json     write the stage report\n"
-		     "  --no-texture          skip the texture stage\n");
+		     "  --no-texture          skip the texture stage\n"
+		     "  --sparse              the paper's sparse mesh only (no dense matching)\n"
+		     "  --debug DIR           write overlays (squares, letters, cell ids, corners, matches,\n"
+		     "                        dense prior and disparity) and the dense clouds into DIR,\n"
+		     "                        also when the reconstruction fails\n");
 }
 
 static std::string texture_path(const std::string &drc)
@@ -186,15 +194,56 @@ static std::vector<std::string> report_warnings(const recon::ReconReport &r, con
 	return out;
 }
 
+// Writes the debug overlays as DIR/<name>.png and the clouds as DIR/<name>.ply (colour =
+// confidence). DIR is created when missing; it may not be the capture set's own directory.
+Status write_debug(const std::string &debug_dir, const std::string &capture_dir, const recon::ReconDebug &debug)
+{
+	if (mkdir(debug_dir.c_str(), 0755) != 0 && errno != EEXIST)
+		return Status::error(-errno, std::string("cannot create it: ") + std::strerror(errno));
+	struct stat a {}, b {};
+	if (stat(debug_dir.c_str(), &a) != 0 || !S_ISDIR(a.st_mode))
+		return Status::error(-ENOTDIR, "not a directory");
+	if (stat(capture_dir.c_str(), &b) == 0 && a.st_dev == b.st_dev && a.st_ino == b.st_ino)
+		return Status::error(-EINVAL, "is the capture set's directory; debug output goes elsewhere");
+	for (const recon::DebugImage &im : debug.images) {
+		std::vector<uchar> png;
+		if (im.image.empty() || !cv::imencode(".png", im.image, png))
+			return Status::error(-EIO, "cannot encode " + im.name);
+		Status s = write_file_atomic(debug_dir + "/" + im.name + ".png", png.data(), png.size());
+		if (!s.ok())
+			return s;
+	}
+	for (const recon::DebugCloud &c : debug.clouds) {
+		recon::Mesh m;
+		m.positions = c.points;
+		m.colours.reserve(c.points.size());
+		for (size_t i = 0; i < c.points.size(); ++i) {
+			const float v = i < c.value.size() ? std::clamp(c.value[i], 0.f, 1.f) : 1.f;
+			m.colours.emplace_back(uchar(255 * v), uchar(255 * v), uchar(255 * (1 - v)));
+		}
+		std::string bytes;
+		Status s = mesh_io::encode_ply(m, &bytes);
+		if (s.ok())
+			s = write_file_atomic(debug_dir + "/" + c.name + ".ply", bytes.data(), bytes.size());
+		if (!s.ok())
+			return s;
+	}
+	return {};
+}
+
+} // namespace
+
 int recon_main(int argc, char **argv)
 {
 	static const option options[] = {{"out", required_argument, nullptr, 'o'},
 					 {"ply", required_argument, nullptr, 'p'},
 					 {"report", required_argument, nullptr, 'r'},
 					 {"no-texture", no_argument, nullptr, 'T'},
+					 {"sparse", no_argument, nullptr, 'S'},
+					 {"debug", required_argument, nullptr, 'D'},
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
-	std::string out, ply, report_path;
+	std::string out, ply, report_path, debug_dir;
 	recon::ReconParams params;
 	optind = 1;
 	for (int opt; (opt = getopt_long(argc, argv, "o:h", options, nullptr)) != -1;) {
@@ -210,6 +259,12 @@ int recon_main(int argc, char **argv)
 			break;
 		case 'T':
 			params.texture_enabled = false;
+			break;
+		case 'S':
+			params.dense_enabled = false;
+			break;
+		case 'D':
+			debug_dir = optarg;
 			break;
 		case 'h':
 			recon_usage(stdout);
@@ -254,7 +309,14 @@ int recon_main(int argc, char **argv)
 	}
 	recon::Mesh mesh;
 	recon::ReconReport report;
-	s = recon::reconstruct(set, pattern, params, &mesh, &report);
+	recon::ReconDebug debug;
+	s = recon::reconstruct(set, pattern, params, &mesh, &report, debug_dir.empty() ? nullptr : &debug);
+	// The overlays are written also (and above all) when the reconstruction failed.
+	if (!debug_dir.empty()) {
+		const Status ds = write_debug(debug_dir, dir, debug);
+		if (!ds.ok())
+			std::fprintf(stderr, "facescan recon: --debug %s: %s\n", debug_dir.c_str(), ds.message().c_str());
+	}
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan recon: %s: %s\n", dir.c_str(), s.message().c_str());
 		return 1;

@@ -71,6 +71,7 @@ struct Shape {
 	float asym = 0, lipschitz = 1;
 	float nose_len = 1, nose_w = 1, nose_proj = 1, nose_dev = 0;
 	float chin = 1, cheeks = 1, lips = 1, sockets = 1, ear_up = 0, ear_back = 0;
+	bool shoulders = false;
 };
 
 Shape make_shape(const HeadShape &h)
@@ -114,9 +115,18 @@ float canonical_field(const V3 &p0, const Shape &s)
 	// Lower jaw towards the gonion, and the chin.
 	d = smin(d, capsule(p, V3(42, -74, 0), V3(14, -98, 60), 13), 22);
 	d = smin(d, ellipsoid(p0, V3(0, -98, 72 + 10 * (s.chin - 1)), V3(22, 14, 16) * s.chin), 16);
-	// Neck, cut flat at the bottom.
+	// Neck, cut flat at the bottom; or continuing into shoulders and an upper chest (trapezius
+	// slopes, deltoids), cut flat lower down.
 	d = smin(d, capsule(p0, V3(0, -70, -22), V3(0, -230, -32), 54), 24);
-	d = std::max(d, -(p0[1] + 205.f));
+	if (!s.shoulders) {
+		d = std::max(d, -(p0[1] + 205.f));
+	} else {
+		float torso = ellipsoid(p0, V3(0, -300, -30), V3(165, 70, 95));
+		torso = smin(torso, capsule(p, V3(40, -245, -30), V3(150, -285, -30), 34), 30);
+		torso = smin(torso, ellipsoid(p, V3(150, -300, -28), V3(40, 45, 48)), 20);
+		d = smin(d, torso, 45);
+		d = std::max(d, -(p0[1] + 330.f));
+	}
 	// Forehead fullness and brow ridge.
 	d = smin(d, ellipsoid(p0, V3(0, 45, 52), V3(62, 42, 36)), 18);
 	d = smin(d, ellipsoid(p, V3(26, 13, 80), V3(24, 8, 10)), 10);
@@ -193,24 +203,52 @@ V3 mix(const V3 &a, const V3 &b, float t)
 	return a * (1 - t) + b * t;
 }
 
-// Linear albedo at a point of the head (canonical coordinates).
-V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s)
+// Height of the scalp hair's edge (canonical coordinates) at azimuth `az` about +y (0 in front,
+// pi at the back): it falls from the forehead past the temples to the nape.
+float hairline(float az)
+{
+	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
+	return std::max(line, -75.f);
+}
+
+// Linear albedo at a point of the head (canonical coordinates). Every HeadLook term is written
+// so that its default leaves the canonical head's albedo bit-identical.
+V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s, const HeadLook &look)
 {
 	V3 p(std::fabs(p0[0]), p0[1], p0[2]);
 	// Skin: blotches at two scales, redder cheeks and nose tip, slightly darker neck.
 	float n = 0.6f * value_noise(p0, 14, key) + 0.4f * value_noise(p0, 4, key + 1);
-	V3 c = skin * (0.92f + 0.16f * n);
+	float blotch = 0.92f + 0.16f * n;
+	if (look.blotches != 1)
+		blotch = 1 + float(look.blotches) * (blotch - 1);
+	V3 c = skin * blotch;
+	if (look.freckles > 0) {
+		// Freckles: small dark spots (a 2.2 mm noise above a threshold) on the nose, cheeks and
+		// forehead, slightly more brown than dark.
+		float zone = smoothstep(45, 70, p[2]) * smoothstep(-55, -35, p[1]) * smoothstep(75, 55, p[1]);
+		float thr = 1 - 0.16f * float(look.freckles);
+		float fr = smoothstep(thr, thr + 0.04f, value_noise(p0, 2.2f, key + 5)) * zone;
+		float k = float(look.freckle_darkness) * fr;
+		c = V3(c[0] * (1 - 0.8f * k), c[1] * (1 - k), c[2] * (1 - 1.15f * k));
+	}
 	float cheek = std::exp(-((p[0] - 40) * (p[0] - 40) + (p[1] + 28) * (p[1] + 28)) / 500.f) *
 		      smoothstep(30, 60, p[2]);
 	float nose = std::exp(-(p[0] * p[0] + (p[1] + 33) * (p[1] + 33)) / 120.f) * smoothstep(95, 105, p[2]);
 	float red = std::min(1.f, 0.5f * cheek + 0.4f * nose);
+	if (look.redness != 1)
+		red = std::min(1.f, red * float(look.redness));
 	c = V3(c[0] * (1 + 0.06f * red), c[1] * (1 - 0.10f * red), c[2] * (1 - 0.08f * red));
 	c *= 1.f - 0.08f * smoothstep(-100, -140, p[1]);
 	// Lips: redder and darker, fading out at the vermilion border.
 	float lip = smoothstep(1.f, 0.7f,
 			       std::sqrt(p[0] * p[0] / (24.f * 24.f) + (p[1] + 65.5f) * (p[1] + 65.5f) / (13.f * 13.f))) *
 		    smoothstep(78, 86, p[2]);
-	c = mix(c, V3(skin[0] * 0.78f, skin[1] * 0.45f, skin[2] * 0.50f), lip);
+	if (look.lip_red == 1 && look.lip_darkness == 1) {
+		c = mix(c, V3(skin[0] * 0.78f, skin[1] * 0.45f, skin[2] * 0.50f), lip);
+	} else {
+		const float L = float(look.lip_red), D = float(look.lip_darkness);
+		c = mix(c, V3(skin[0] * (1 - 0.22f * L), skin[1] * (1 - 0.55f * L), skin[2] * (1 - 0.50f * L)) * D, lip);
+	}
 	// Eyes: sclera, iris, pupil on the eyeball's front.
 	V3 eye_c(32, 1, 70);
 	V3 q = p - eye_c;
@@ -222,20 +260,37 @@ V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s)
 	}
 	// Brows: an arc of hair over each socket, with strands from the noise.
 	float bx = (p[0] - 31) / 20.f, by = p[1] - (17 - 4 * bx * bx);
-	float brow = smoothstep(1.05f, 0.85f, std::fabs(bx)) * smoothstep(4.5f, 2.5f, std::fabs(by)) *
+	float brow = smoothstep(1.05f, 0.85f, std::fabs(bx)) * smoothstep(4.5f, 2.5f, std::fabs(by) / float(look.brow_width)) *
 		     smoothstep(70, 80, p[2]);
 	brow *= 0.6f + 0.4f * value_noise(p0, 1.2f, key + 2);
-	V3 hair(0.045f, 0.032f, 0.024f);
-	c = mix(c, hair, brow);
+	const V3 hair = look.hair;
+	c = mix(c, hair, brow * float(look.brow_darkness));
+	if (look.stubble > 0) {
+		// Beard shadow: follicle dots (0.7 mm noise) over the upper lip, chin and jaw down the
+		// neck's front, off the lips.
+		float upper_lip = smoothstep(-47, -52, p[1]) * smoothstep(-64, -60, p[1]) * smoothstep(26, 18, p[0]);
+		float jaw = smoothstep(-68, -80, p[1]) * smoothstep(-150, -125, p[1]) * smoothstep(-20, 10, p[2]);
+		float zone = std::max(upper_lip, jaw) * (1 - lip);
+		float dots = smoothstep(0.45f, 0.65f, value_noise(p0, 0.7f, key + 7));
+		c = mix(c, hair, std::min(1.f, float(look.stubble) * (0.35f + 0.45f * dots)) * zone);
+	}
 	// Scalp hair above a hairline that falls from the forehead to the nape.
 	float az = std::atan2(p[0], p[2]); // 0 in front, pi at the back
-	float line = az < 0.9f ? 62 - 25 * az : (az < 1.75f ? 40 - 26 * (az - 0.9f) / 0.85f : 14 - 60 * (az - 1.75f));
-	line = std::max(line, -75.f);
+	float line = hairline(az) + float(look.hairline_mm);
 	const float ey = p[1] - s.ear_up, ez = p[2] + s.ear_back;
 	bool ear_zone = p[0] > 66 && ey < 22 && ey > -48 && ez < 10 && ez > -38;
 	float h = smoothstep(line - 3, line + 3, p[1]) * (ear_zone ? 0.f : 1.f);
 	h *= 0.85f + 0.15f * value_noise(p0, 2, key + 3);
+	if (look.hair_fringe > 0 && !ear_zone) {
+		// Wisps reaching below the hairline: strands from a fine noise, thinning downwards.
+		float reach = 14 * float(look.hair_fringe);
+		float band = smoothstep(line - 3 - reach, line - 3, p[1]);
+		float strands = smoothstep(0.55f, 0.7f, value_noise(V3(p0[0] * 2, p0[1] * 0.4f, p0[2] * 2), 1.0f, key + 6));
+		h = std::max(h, band * strands * 0.9f);
+	}
 	c = mix(c, hair * (0.8f + 0.5f * value_noise(p0, 6, key + 4)), h);
+	if (s.shoulders) // the shoulders' skin a little less sunned than the face
+		c *= 1.f - 0.06f * smoothstep(-215, -250, p[1]);
 	for (int k = 0; k < 3; k++)
 		c[k] = std::clamp(c[k], 0.005f, 0.95f);
 	return c;
@@ -264,6 +319,67 @@ const std::vector<HeadShapeRange> &head_shape_ranges()
 	return ranges;
 }
 
+std::vector<char> face_region(const HeadSpec &spec, const Mesh &head)
+{
+	Shape shape = make_shape(spec.shape);
+	shape.shoulders = spec.look.shoulders;
+	std::vector<char> out(head.vertices.size(), 0);
+	for (size_t i = 0; i < head.vertices.size(); i++) {
+		const V3 q = canonical(head.vertices[i], shape);
+		const float az = std::atan2(std::fabs(q[0]), q[2]);
+		const float ny = head.normals.empty() ? 0.f : head.normals[i][1];
+		// In front of the ears (the tragus is at ~1.6 rad), below the hairline, above the
+		// chin's lowest point, and not the jaw's or chin's under-side.
+		out[i] = az < 1.55f && q[1] <= hairline(az) + float(spec.look.hairline_mm) && q[1] >= -118.f && ny > -0.5f;
+	}
+	return out;
+}
+
+const std::vector<HeadLookRange> &head_look_ranges()
+{
+	static const std::vector<HeadLookRange> ranges = {
+		{"blotches", &HeadLook::blotches, 0.5, 2.5},
+		{"freckles", &HeadLook::freckles, 0, 1},
+		{"freckle_darkness", &HeadLook::freckle_darkness, 0.15, 0.5},
+		{"redness", &HeadLook::redness, 0.3, 2},
+		{"brow_darkness", &HeadLook::brow_darkness, 0.3, 1},
+		{"brow_width", &HeadLook::brow_width, 0.7, 1.5},
+		{"lip_red", &HeadLook::lip_red, 0.3, 1.5},
+		{"lip_darkness", &HeadLook::lip_darkness, 0.6, 1.1},
+		{"stubble", &HeadLook::stubble, 0, 1},
+		{"hairline_mm", &HeadLook::hairline_mm, -15, 20},
+		{"hair_fringe", &HeadLook::hair_fringe, 0, 1},
+	};
+	return ranges;
+}
+
+HeadAppearance random_head_appearance(uint64_t head_seed)
+{
+	HeadAppearance a;
+	const uint64_t key = internal::mix64(head_seed ^ 0x100cbeefULL);
+	uint64_t i = 0;
+	// Skin tone: along a light-to-dark line of linear albedos (fair to deep brown), the
+	// canonical (0.62, 0.43, 0.34) near its light end and the "dark" scene near 0.75.
+	const double t = internal::uniform01(key, i++);
+	const cv::Vec3d light(0.70, 0.50, 0.41), dark(0.12, 0.065, 0.042);
+	// Interpolated in log albedo: perceptually even steps between the ends.
+	for (int k = 0; k < 3; k++)
+		a.skin[k] = float(std::exp((1 - t) * std::log(light[k]) + t * std::log(dark[k])));
+	a.skin_tone = t;
+	for (const HeadLookRange &r : head_look_ranges())
+		a.look.*r.member = r.lo + (r.hi - r.lo) * internal::uniform01(key, i++);
+	// Freckles are mostly a light-skin trait; stubble on about half the heads.
+	a.look.freckles *= std::max(0.0, 1 - 1.5 * t);
+	if (internal::uniform01(key, i++) < 0.5)
+		a.look.stubble = 0;
+	// Hair: black, dark brown, brown, blond, red or grey.
+	static const cv::Vec3f hairs[6] = {{0.02f, 0.018f, 0.016f}, {0.045f, 0.032f, 0.024f}, {0.10f, 0.065f, 0.04f},
+					   {0.32f, 0.24f, 0.13f},   {0.22f, 0.08f, 0.03f},    {0.30f, 0.29f, 0.28f}};
+	a.look.hair = hairs[std::min(5, int(internal::uniform01(key, i++) * 6))];
+	a.look.shoulders = internal::uniform01(key, i++) < 0.75;
+	return a;
+}
+
 HeadShape random_head_shape(uint64_t head_seed)
 {
 	HeadShape h;
@@ -286,15 +402,29 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 							      std::to_string(v) + " out of range [" +
 							      std::to_string(r.lo) + ", " + std::to_string(r.hi) + "]");
 	}
-	const Shape shape = make_shape(spec.shape);
+	for (const HeadLookRange &r : head_look_ranges()) {
+		double v = spec.look.*r.member;
+		// The canonical look's values (freckle_darkness etc.) lie inside their ranges too.
+		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
+			return Status::error(-EINVAL, std::string("head look ") + r.name + " " + std::to_string(v) +
+							      " out of range [" + std::to_string(r.lo) + ", " +
+							      std::to_string(r.hi) + "]");
+	}
+	for (int k = 0; k < 3; k++)
+		if (!(spec.look.hair[k] >= 0 && spec.look.hair[k] <= 1))
+			return Status::error(-EINVAL, "head look hair albedo must lie in 0..1");
+	Shape shape = make_shape(spec.shape);
+	shape.shoulders = spec.look.shoulders;
 	for (int k = 0; k < 3; k++)
 		if (!(skin[k] >= 0 && skin[k] <= 1))
 			return Status::error(-EINVAL, "skin albedo must lie in 0..1");
 	const float h = float(spec.cell_mm);
 	// The canonical head's box, scaled with the head (and widened for the asymmetry).
 	const float wx = float(spec.shape.width) * (1 + std::fabs(shape.asym));
-	const V3 lo(-104 * wx, -212 * float(spec.shape.height), -122 * float(spec.shape.depth));
-	const V3 hi(104 * wx, 136 * float(spec.shape.height), 132 * float(spec.shape.depth));
+	const float bx = shape.shoulders ? 210.f : 104.f, by = shape.shoulders ? -338.f : -212.f;
+	const float bz = shape.shoulders ? -140.f : -122.f;
+	const V3 lo(-bx * wx, by * float(spec.shape.height), bz * float(spec.shape.depth));
+	const V3 hi(bx * wx, 136 * float(spec.shape.height), 132 * float(spec.shape.depth));
 	const int nx = int(std::ceil((hi[0] - lo[0]) / h)) + 1;
 	const int ny = int(std::ceil((hi[1] - lo[1]) / h)) + 1;
 	const int nz = int(std::ceil((hi[2] - lo[2]) / h)) + 1;
@@ -413,7 +543,7 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 			float gl = len(g);
 			m.vertices[size_t(vi)] = p;
 			m.normals[size_t(vi)] = gl > 1e-8f ? g * (1.f / gl) : V3(0, 0, 1);
-			m.colors[size_t(vi)] = head_albedo(canonical(p, shape), skin, key, shape);
+			m.colors[size_t(vi)] = head_albedo(canonical(p, shape), skin, key, shape, spec.look);
 		}
 	});
 	// Orient every triangle outwards (the quad winding above depends on the crossing sign).

@@ -17,6 +17,9 @@ inline double uniform01(uint64_t key, uint64_t index)
 {
 	return (double(mix64(key ^ mix64(index)) >> 11) + 0.5) * (1.0 / 9007199254740992.0);
 }
+/// The head's rotation in a scene: yaw about +y, then pitch about +x, after a roll about +z.
+cv::Matx33d head_rotation(double yaw_deg, double pitch_deg, double roll_deg);
+
 /// A standard normal sample (Box-Muller over two counter draws).
 double gaussian(uint64_t key, uint64_t index);
 

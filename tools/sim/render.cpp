@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <tuple>
 
 namespace facescan::sim {
 
@@ -26,7 +27,8 @@ struct SlideStack {
 	std::vector<double> sigmas;
 	std::vector<cv::Mat> levels; // CV_32FC3, RGB order, linear
 
-	static SlideStack make(const cv::Mat &bgr, cv::Size size, double gamma)
+	static SlideStack make(const cv::Mat &bgr, cv::Size size, double gamma,
+			       const std::vector<cv::Point2d> &mask)
 	{
 		SlideStack s;
 		cv::Mat img = bgr;
@@ -36,6 +38,20 @@ struct SlideStack {
 		cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
 		rgb.convertTo(lin, CV_32FC3, 1.0 / 255);
 		cv::pow(lin, gamma, lin);
+		if (!mask.empty()) {
+			// A physical mask in the slide plane: black outside the polygon (sub-pixel edge
+			// positions, 8 fractional bits), blurred with the slide by the projector's defocus.
+			const int shift = 8;
+			std::vector<cv::Point> poly;
+			for (const cv::Point2d &q : mask)
+				poly.emplace_back(int(std::lround(q.x * (1 << shift))), int(std::lround(q.y * (1 << shift))));
+			cv::Mat m = cv::Mat::zeros(size, CV_8U);
+			cv::fillPoly(m, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255), cv::LINE_8, shift);
+			cv::Mat m3;
+			cv::cvtColor(m, m3, cv::COLOR_GRAY2RGB);
+			m3.convertTo(m3, CV_32FC3, 1.0 / 255);
+			lin = lin.mul(m3);
+		}
 		s.sigmas = {0.0, 0.5, 1.0, 2.0, 4.0, 8.0};
 		for (double sg : s.sigmas) {
 			cv::Mat b;
@@ -375,16 +391,20 @@ Status render_views(const Rig &rig, const std::vector<Surface> &surfaces, const 
 	if (!st.ok())
 		return st;
 
-	// Slide stacks, shared by projectors with the same size and gamma.
-	std::map<std::pair<std::pair<int, int>, double>, SlideStack> stacks;
+	for (const SimProjector &p : rig.projectors)
+		if (!p.mask.empty() && p.mask.size() < 3)
+			return Status::error(-EINVAL, "render: projector " + p.name + " mask needs at least 3 points");
+	// Slide stacks, shared by unmasked projectors with the same size and gamma (a masked one
+	// has its own: key -1 - j).
+	std::map<std::tuple<int, int, double, int>, SlideStack> stacks;
 	std::vector<const SlideStack *> slides(rig.projectors.size(), nullptr);
 	if (lit)
 		for (size_t j = 0; j < rig.projectors.size(); j++) {
 			const SimProjector &p = rig.projectors[j];
-			auto key = std::make_pair(std::make_pair(p.size.width, p.size.height), p.gamma);
+			auto key = std::make_tuple(p.size.width, p.size.height, p.gamma, p.mask.empty() ? 0 : -1 - int(j));
 			auto it = stacks.find(key);
 			if (it == stacks.end())
-				it = stacks.emplace(key, SlideStack::make(slide, p.size, p.gamma)).first;
+				it = stacks.emplace(key, SlideStack::make(slide, p.size, p.gamma, p.mask)).first;
 			slides[j] = &it->second;
 		}
 	std::vector<cv::Mat> textures;

@@ -178,7 +178,7 @@ struct Parser {
 		if (!check_keys(node, where,
 				{"name", "azimuth_deg", "elevation_deg", "distance_mm", "target_mm",
 				 "roll_deg", "R", "T", "size", "focal_px", "principal_px", "power",
-				 "focus_mm", "blur_px", "defocus_px_per_100mm", "gamma"}))
+				 "focus_mm", "blur_px", "defocus_px_per_100mm", "gamma", "mask", "zone_mm"}))
 			return false;
 		Placement p;
 		if (!placement(node, where, &p))
@@ -192,9 +192,37 @@ struct Parser {
 		number(node, "gamma", where, &pr->gamma, 0.1, 10);
 		if (!status.ok())
 			return false;
+		pr->mask.clear();
+		cv::FileNode mask = node["mask"];
+		if (!mask.empty()) {
+			if (!mask.isSeq() || mask.size() < 6 || mask.size() % 2 != 0)
+				return fail(where + ".mask", "expected a polygon: a list x0, y0, x1, y1, ... of at least 3 points");
+			for (size_t i = 0; i < mask.size(); i += 2) {
+				cv::FileNode x = mask[int(i)], y = mask[int(i + 1)];
+				if ((!x.isReal() && !x.isInt()) || (!y.isReal() && !y.isInt()) ||
+				    !std::isfinite(double(x)) || !std::isfinite(double(y)))
+					return fail(where + ".mask", "element " + std::to_string(i) + " is not a finite number");
+				pr->mask.emplace_back(double(x), double(y));
+			}
+		}
 		pr->size = cv::Size(int(p.size[0]), int(p.size[1]));
 		pr->K = intrinsics(p);
 		pose(p, &pr->R, &pr->T);
+		std::vector<double> zone;
+		bool has_zone = false;
+		vec(node, "zone_mm", where, 2, &zone, &has_zone);
+		if (!status.ok())
+			return false;
+		if (has_zone) {
+			if (!mask.empty())
+				return fail(where + ".zone_mm", "give mask or zone_mm, not both");
+			if (!(zone[0] < zone[1]))
+				return fail(where + ".zone_mm", "expected [x_lo, x_hi] with x_lo < x_hi");
+			const double lo = zone[0] <= -1000 ? -INFINITY : zone[0], hi = zone[1] >= 1000 ? INFINITY : zone[1];
+			Status st = zone_mask(*pr, lo, hi, &pr->mask);
+			if (!st.ok())
+				return fail(where + ".zone_mm", st.message());
+		}
 		return true;
 	}
 
@@ -256,9 +284,10 @@ struct Parser {
 	bool rig(const cv::FileNode &root, Rig *r)
 	{
 		if (!check_keys(root, "(top level)",
-				{"cameras", "projectors", "sensor", "lighting", "supersample"}))
+				{"cameras", "projectors", "sensor", "lighting", "supersample", "booth"}))
 			return false;
 		double ss = r->supersample;
+		// `booth` records how a random booth was drawn (booth.yaml): for people, not the rig.
 		number(root, "supersample", "(top level)", &ss, 1, 8);
 		if (!status.ok())
 			return false;
@@ -419,6 +448,82 @@ std::vector<CameraModel> projector_models(const Rig &rig)
 		out.push_back(m);
 	}
 	return out;
+}
+
+std::vector<std::vector<cv::Point2d>> projector_masks(const Rig &rig)
+{
+	std::vector<std::vector<cv::Point2d>> out;
+	for (const SimProjector &p : rig.projectors)
+		out.push_back(p.mask);
+	return out;
+}
+
+namespace {
+
+void write_pose(cv::FileStorage &fs, const cv::Matx33d &R, const cv::Vec3d &T, cv::Size size, const cv::Matx33d &K)
+{
+	fs << "R" << "[:";
+	for (int i = 0; i < 9; i++)
+		fs << R.val[i];
+	fs << "]" << "T" << "[:" << T[0] << T[1] << T[2] << "]";
+	fs << "size" << "[:" << size.width << size.height << "]";
+	fs << "focal_px" << "[:" << K(0, 0) << K(1, 1) << "]";
+	fs << "principal_px" << "[:" << K(0, 2) << K(1, 2) << "]";
+}
+
+} // namespace
+
+Status write_rig(const std::string &path, const Rig &rig, const std::string &booth_text)
+{
+	std::string text;
+	try {
+		cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+		fs << "supersample" << rig.supersample;
+		fs << "cameras" << "[";
+		for (const SimCamera &c : rig.cameras) {
+			fs << "{" << "name" << c.name;
+			write_pose(fs, c.model.R, c.model.T, c.model.size, c.model.K);
+			fs << "dist" << "[:";
+			for (int i = 0; i < 5; i++)
+				fs << c.model.dist[i];
+			fs << "]" << "focus_mm" << c.focus_mm << "blur_px" << c.blur_px
+			   << "defocus_px_per_100mm" << c.defocus_px_per_100mm << "exposure" << c.exposure << "}";
+		}
+		fs << "]" << "projectors" << "[";
+		for (const SimProjector &p : rig.projectors) {
+			fs << "{" << "name" << p.name;
+			write_pose(fs, p.R, p.T, p.size, p.K);
+			fs << "power" << p.power << "focus_mm" << p.focus_mm << "blur_px" << p.blur_px
+			   << "defocus_px_per_100mm" << p.defocus_px_per_100mm << "gamma" << p.gamma;
+			if (!p.mask.empty()) {
+				fs << "mask" << "[:";
+				for (const cv::Point2d &q : p.mask)
+					fs << q.x << q.y;
+				fs << "]";
+			}
+			fs << "}";
+		}
+		fs << "]";
+		const SensorModel &s = rig.sensor;
+		fs << "sensor" << "{" << "full_well_e" << s.full_well_e << "read_noise_e" << s.read_noise_e
+		   << "adc_bits" << s.adc_bits << "gamma" << s.gamma << "crosstalk" << "[:";
+		for (int i = 0; i < 9; i++)
+			fs << s.crosstalk.val[i];
+		fs << "]" << "bayer" << (s.bayer ? 1 : 0) << "noise_scale" << s.noise_scale << "}";
+		const Lighting &l = rig.lighting;
+		fs << "lighting" << "{" << "ambient_pattern" << l.ambient_pattern << "ambient_texture"
+		   << l.ambient_texture << "lights" << "[";
+		for (const DiffuseLight &d : l.lights)
+			fs << "{:" << "azimuth_deg" << d.azimuth_deg << "elevation_deg" << d.elevation_deg
+			   << "intensity" << d.intensity << "}";
+		fs << "]" << "}";
+		text = fs.releaseAndGetString();
+	} catch (const cv::Exception &e) {
+		return Status::error(-EINVAL, path + ": cannot serialise the rig: " + e.err);
+	}
+	if (!booth_text.empty())
+		text += "booth:\n" + booth_text;
+	return write_file_atomic(path, text.data(), text.size());
 }
 
 } // namespace facescan::sim

@@ -54,6 +54,9 @@ struct SimProjector {
 	double blur_px = 0.6;		    // slide pixels, at focus
 	double defocus_px_per_100mm = 1.5;  // slide pixels per 100 mm away from focus
 	double gamma = 2.2;		    // slide value → light: (v/255)^gamma
+	/// A mask on the slide: the polygon (slide pixels, pixel centres at integers) through which
+	/// light passes; the rest of the slide is black. Empty = the whole slide.
+	std::vector<cv::Point2d> mask;
 	cv::Vec3d centre() const { return -(R.t() * T); }
 };
 
@@ -115,6 +118,13 @@ Calibration rig_calibration(const Rig &rig);
 
 /// The rig's projectors as pinhole models (no distortion), for the evaluation's "lit" test.
 std::vector<CameraModel> projector_models(const Rig &rig);
+/// The rig's slide masks, one per projector (empty polygon = the whole slide lights).
+std::vector<std::vector<cv::Point2d>> projector_masks(const Rig &rig);
+
+/// Writes `rig` as a rig file (every device by R and T, so load_rig() gives it back exactly),
+/// atomically. `booth_text`, when not empty, is YAML placed under a top-level `booth:` key
+/// (load_rig() ignores it: it records how a random booth was drawn).
+Status write_rig(const std::string &path, const Rig &rig, const std::string &booth_text = "");
 
 // ---- geometry --------------------------------------------------------------------------------
 
@@ -177,10 +187,48 @@ const std::vector<HeadShapeRange> &head_shape_ranges();
 /// of the sensor noise seed).
 HeadShape random_head_shape(uint64_t head_seed);
 
+/// How the head looks, beyond its anatomy. The defaults are the canonical head's appearance
+/// (skin tone itself is Scene::skin). Ranges: head_look_ranges() (docs/simulator.md).
+struct HeadLook {
+	double blotches = 1;		// strength of the 4 / 14 mm skin blotches (1 = canonical +-8 %)
+	double freckles = 0;		// freckle density on nose, cheeks and forehead (0 none, 1 many)
+	double freckle_darkness = 0.35;	// albedo drop at a freckle's centre
+	double redness = 1;		// cheek / nose-tip flush
+	double brow_darkness = 1;	// 1 = canonical (near-black hair), 0 = as light as the skin
+	double brow_width = 1;		// brow thickness factor
+	double lip_red = 1;		// lip colour: 0 = skin, 1 = canonical, 1.5 = strong red
+	double lip_darkness = 1;	// lip albedo factor on top of the colour
+	double stubble = 0;		// beard shadow on jaw, chin and upper lip (0 none, 1 dark)
+	double hairline_mm = 0;		// hairline raised (+) or lowered (-) from the canonical
+	double hair_fringe = 0;		// wisps of hair below the hairline (0 none, 1 a ragged band)
+	cv::Vec3f hair = {0.045f, 0.032f, 0.024f}; // hair albedo (linear RGB)
+	bool shoulders = false;		// neck continues into shoulders and an upper chest
+};
+
+/// One scalar HeadLook member with its range (random_head_look() draws inside; make_head refuses
+/// values outside).
+struct HeadLookRange {
+	const char *name;
+	double HeadLook::*member;
+	double lo, hi;
+};
+const std::vector<HeadLookRange> &head_look_ranges();
+
+/// A head's whole appearance drawn from the widened family: skin tone from light to dark, the
+/// HeadLook scalars uniformly from their ranges, hair colour, and shoulders. Deterministic for
+/// the seed (and independent of random_head_shape's draw for the same seed).
+struct HeadAppearance {
+	cv::Vec3f skin;
+	HeadLook look;
+	double skin_tone = 0;		// 0 lightest .. 1 darkest of the range (for the record)
+};
+HeadAppearance random_head_appearance(uint64_t head_seed);
+
 struct HeadSpec {
 	double cell_mm = 1.4;	// grid step of the implicit surface (smaller = more triangles)
 	uint32_t seed = 1;	// skin blotches
 	HeadShape shape;	// anatomy (default: the canonical head)
+	HeadLook look;		// appearance (default: the canonical head's)
 };
 
 /// The procedural head in head coordinates (mm, face towards +z, +y up, centred near the
@@ -193,6 +241,7 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh);
 struct Scene {
 	std::string name = "default";
 	double yaw_deg = 0, pitch_deg = 0;	// head rotation about +y, then +x
+	double roll_deg = 0;			// ... after a roll about +z (applied first)
 	cv::Vec3d position = {0, 0, 0};		// head origin in world mm
 	cv::Vec3f skin = {0.62f, 0.43f, 0.34f}; // linear albedo of cheek skin
 	double noise_scale = 1.0;		// multiplies the rig sensor's noise
@@ -245,6 +294,11 @@ struct SimTruth {
 	/// The projectors as pinhole models (projector_models(rig)): which truth points were lit,
 	/// for scoring completeness without knowing the rig file the set was rendered with.
 	std::vector<CameraModel> projectors;
+	/// Per projector, its slide mask (projector_masks(rig)); all empty when nothing is masked.
+	std::vector<std::vector<cv::Point2d>> projector_masks;
+	/// The true calibration of the cameras the set was rendered through, when the set's
+	/// calibration.yaml was written with an error (random booths); empty otherwise.
+	Calibration true_calibration;
 	double render_seconds = 0;	// wall time of the render (for the CLI and the bench)
 };
 
@@ -263,9 +317,141 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 /// `tile_width` pixels wide, camera names written on the tiles. 8-bit BGR.
 cv::Mat contact_sheet(const CaptureSet &set, int tile_width);
 
-/// Writes the capture set plus the ground truth into `dir`: ground_truth.ply (the head, world mm)
-/// and ground_truth_projectors.yaml (the projectors, in calibration.yaml's format).
+/// Writes the capture set plus the ground truth into `dir`: ground_truth.ply (the head, world mm),
+/// ground_truth_projectors.yaml (the projectors, in calibration.yaml's format, plus
+/// `cam{j}_slide_mask: [x0, y0, x1, y1, ...]` for every masked projector j) and, when
+/// truth.true_calibration has cameras, ground_truth_calibration.yaml (the cameras as rendered).
 Status write_simulated_set(const std::string &dir, const CaptureSet &set, const SimTruth &truth);
+
+// ---- random booths -----------------------------------------------------------------------------
+
+/// A closed interval a random booth draws from (uniformly).
+struct Interval {
+	double lo = 0, hi = 0;
+};
+
+/// The ranges random_booth() draws from; every one is listed in docs/simulator.md. Angles in
+/// degrees, lengths in mm, the world frame of this header (head nominally at the origin).
+struct BoothRanges {
+	/// Cameras, left to right (cam0 at the subject's right, -x). Consecutive cameras are
+	/// recon's stereo pairs: their azimuths differ by cam_gap_deg at most, so each pair sees
+	/// a common part of the face.
+	Interval cam_azimuth_deg[4] = {{-70, -40}, {-32, -8}, {8, 32}, {40, 70}};
+	Interval cam_gap_deg = {18, 55};
+	Interval cam_elevation_deg = {-10, 15};
+	Interval cam_distance_mm = {450, 700};
+	Interval cam_roll_deg = {-3, 3};
+	Interval cam_target_jitter_mm = {-15, 15};	// each axis, around (0, -10, 40)
+	/// Focal length such that 240 mm (crown to chin) fills this fraction of the image height.
+	Interval cam_fill = {0.55, 0.85};
+	Interval cam_width_px = {1440, 1760};		// height = width / aspect (4:3, 5:4 or 16:10)
+	Interval cam_principal_offset = {-0.02, 0.02};	// fraction of the size, each axis
+	Interval cam_k1 = {-0.15, 0.05}, cam_k2 = {-0.05, 0.15}, cam_p = {-0.001, 0.001};
+	Interval cam_exposure = {0.8, 1.25};
+	Interval cam_blur_px = {0.35, 0.7};
+	/// Projectors, left / centre / right.
+	Interval proj_azimuth_deg[3] = {{-65, -28}, {-12, 12}, {28, 65}};
+	Interval proj_elevation_deg = {0, 25};
+	Interval proj_distance_mm = {450, 800};
+	/// Focal length such that the pattern's cell pitch measures this on a surface at the
+	/// projector's target distance (the slide is 1024 x 768, the default pattern's pitch).
+	Interval proj_pitch_mm = {6, 20};
+	/// Roll: a quarter turn (0, 90, 180 or 270, equally likely) plus this.
+	Interval proj_roll_extra_deg = {-10, 10};
+	/// Aim points (x per projector, y and z shared) when the projectors overlap.
+	Interval proj_aim_x_mm[3] = {{-75, -25}, {-15, 15}, {25, 75}};
+	Interval proj_aim_y_mm = {-45, 5};
+	Interval proj_aim_z_mm = {20, 70};
+	/// Light on the face: projector power such that a white surface facing it at its target
+	/// distance gives this sensor value.
+	Interval proj_face_power = {1.1, 2.0};
+	/// Masked booths (probability masked_probability): each projector lights only its zone of
+	/// the face, the zones split by vertical planes x = left / right (booth frame, at the face
+	/// depth z = 60 mm), each widened by the overlap on both sides.
+	double masked_probability = 0.5;
+	Interval zone_left_mm = {-45, -15}, zone_right_mm = {15, 45};
+	Interval zone_overlap_mm = {0, 8};
+	/// A masked projector aims inside its zone: this far beyond the zone boundary (outer
+	/// projectors), or this far off the zone centre (the centre one).
+	Interval zone_aim_outer_mm = {15, 45}, zone_aim_centre_mm = {-8, 8};
+	/// Lighting and sensor.
+	Interval ambient_pattern = {0.01, 0.08}, ambient_texture = {0.06, 0.18};
+	Interval softbox_azimuth_deg = {20, 50}, softbox_elevation_deg = {5, 35};
+	Interval softbox_intensity = {0.3, 0.6}, toplight_intensity = {0, 0.3};
+	Interval noise_scale = {0.7, 3}, read_noise_e = {3, 10}, full_well_e = {6000, 12000};
+	/// The head's pose: offset from the nominal place on each axis, then turned.
+	Interval head_offset_mm = {-20, 20};
+	Interval head_yaw_deg = {-10, 10}, head_pitch_deg = {-10, 10}, head_roll_deg = {-6, 6};
+	/// The written calibration's error: per camera, the RMS displacement (pixels) of the
+	/// head's points between the true and the written calibration.
+	Interval calibration_error_px = {0.2, 0.4};
+};
+const BoothRanges &booth_ranges();
+
+/// A booth drawn at random, and what was drawn (for booth.yaml and the tests).
+struct RandomBooth {
+	uint64_t seed = 0;
+	Rig rig;			// the true rig: renders the scene
+	bool masked = false;
+	double zone_left_mm = 0, zone_right_mm = 0, zone_overlap_mm = 0;
+	std::vector<double> cam_azimuth_deg, cam_elevation_deg, cam_distance_mm;
+	std::vector<double> proj_azimuth_deg, proj_elevation_deg, proj_distance_mm, proj_roll_deg;
+	std::vector<double> proj_pitch_mm;	// cell pitch on a surface at the projector's target
+	cv::Vec3d head_offset_mm = {0, 0, 0};
+	double head_yaw_deg = 0, head_pitch_deg = 0, head_roll_deg = 0, noise_scale = 1;
+	std::vector<double> calibration_error_px; // per camera, the target of perturb_calibration
+};
+
+/// Draws a booth from booth_ranges(), deterministic for the seed. `slide_pitch_px` is the
+/// pattern's cell pitch on the 1024 x 768 slide (Pattern::pitch), which the projector focal
+/// lengths are chosen for. -EINVAL when it is not positive.
+Status random_booth(uint64_t seed, double slide_pitch_px, RandomBooth *ret_booth);
+
+/// The slide mask that confines projector `p` to the zone x_lo_mm <= x <= x_hi_mm of the booth
+/// (either may be infinite): the slide clipped by the images of the vertical lines x = x_lo / x_hi
+/// at the face's depth (z = 60 mm). -EINVAL when nothing of the slide is left.
+Status zone_mask(const SimProjector &p, double x_lo_mm, double x_hi_mm, std::vector<cv::Point2d> *ret_mask);
+
+/// Places a scene's head as the booth drew it (offset and turn; the rest of the scene stays).
+void apply_head_pose(const RandomBooth &booth, Scene *scene);
+
+/// A calibration with the error of a good one: each camera's K, dist, R and T moved along a
+/// random direction (seeded) scaled so that `points` (world mm) reproject, RMS over the
+/// points in front of the camera and inside its image, `rms_px[i]` pixels away from where the
+/// true camera i puts them. `ret_rms_px` gets the RMS reached (within 2 % of the target).
+/// -EINVAL when sizes disagree or a camera sees fewer than 20 of the points.
+Status perturb_calibration(const Calibration &truth, const std::vector<double> &rms_px,
+			   const std::vector<cv::Point3d> &points, uint64_t seed, Calibration *ret_calibration,
+			   std::vector<double> *ret_rms_px);
+
+/// RMS pixel distance between where two calibrations of one camera put `points` (those in front
+/// of both and inside `a`'s image); -1 when fewer than 20 qualify.
+double reprojection_rms(const CameraModel &a, const CameraModel &b, const std::vector<cv::Point3d> &points);
+
+/// The booth as YAML text for the `booth:` section of booth.yaml (what was drawn, and the
+/// calibration error reached).
+std::string booth_yaml(const RandomBooth &booth, const std::vector<double> &calibration_rms_px);
+
+// ---- face coverage -----------------------------------------------------------------------------
+
+/// Per vertex of a head made by make_head(spec) (head coordinates, before any pose): 1 on the
+/// face as the issue asks it covered: from the hairline to under the chin, ear to ear (in front
+/// of the ears), the under-side of the jaw and the neck excluded.
+std::vector<char> face_region(const HeadSpec &spec, const Mesh &head);
+
+struct FaceCoverage {
+	int face_points = 0;
+	double lit = 0;			// fraction of face points some projector lights (mask included)
+	double lit_twice = 0;		// ... that two or more projectors light
+	double paired = 0;		// ... that both cameras of a consecutive pair see
+	double lit_and_paired = 0;	// ... lit and seen by a consecutive pair: what recon can reach
+};
+
+/// Where the rig's light and stereo pairs reach the face of `scene`'s head in its pose, by ray
+/// casting (no rendering): a projector lights a point it faces (cos >= 0.1) unshadowed, on its
+/// slide and inside its mask; a camera sees a point unoccluded, in its image, within 72 deg of
+/// the normal (cos >= 0.3). -EINVAL as make_head.
+Status face_coverage(const Rig &rig, const Scene &scene, FaceCoverage *ret_coverage);
 
 // ---- ray casting -------------------------------------------------------------------------------
 

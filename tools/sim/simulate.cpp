@@ -4,6 +4,9 @@
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <cmath>
 
 namespace facescan::sim {
@@ -55,12 +58,16 @@ static Mesh make_booth_wall(double radius, double height)
 	return m;
 }
 
-static cv::Matx33d rotation(double yaw_deg, double pitch_deg)
+cv::Matx33d internal::head_rotation(double yaw_deg, double pitch_deg, double roll_deg)
 {
 	double y = yaw_deg * M_PI / 180, p = pitch_deg * M_PI / 180;
 	cv::Matx33d Ry(std::cos(y), 0, std::sin(y), 0, 1, 0, -std::sin(y), 0, std::cos(y));
 	cv::Matx33d Rx(1, 0, 0, 0, std::cos(p), -std::sin(p), 0, std::sin(p), std::cos(p));
-	return Ry * Rx;
+	if (roll_deg == 0) // exactly the rotation scenes without a roll have always had
+		return Ry * Rx;
+	double r = roll_deg * M_PI / 180;
+	cv::Matx33d Rz(std::cos(r), -std::sin(r), 0, std::sin(r), std::cos(r), 0, 0, 0, 1);
+	return Ry * Rx * Rz;
 }
 
 Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint64_t seed,
@@ -75,7 +82,7 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 	Status st = make_head(scene.head, scene.skin, &head.mesh);
 	if (!st.ok())
 		return st;
-	transform_mesh(rotation(scene.yaw_deg, scene.pitch_deg), scene.position, &head.mesh);
+	transform_mesh(internal::head_rotation(scene.yaw_deg, scene.pitch_deg, scene.roll_deg), scene.position, &head.mesh);
 	head.id = 1;
 	head.specular = 0.06f; // the sheen of skin
 	head.shininess = 24;
@@ -117,6 +124,7 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 		t.head = std::move(surfaces[0].mesh);
 		t.views = std::move(res.truth);
 		t.projectors = projector_models(rig);
+		t.projector_masks = projector_masks(rig);
 		t.render_seconds = secs;
 		*ret_truth = std::move(t);
 	}
@@ -131,10 +139,42 @@ Status write_simulated_set(const std::string &dir, const CaptureSet &set, const 
 	st = write_ply(dir + "/ground_truth.ply", truth.head);
 	if (!st.ok())
 		return st;
+	if (!truth.true_calibration.cameras.empty()) {
+		st = write_calibration(dir + "/ground_truth_calibration.yaml", truth.true_calibration);
+		if (!st.ok())
+			return st;
+	}
 	Calibration projectors;
 	projectors.cameras = truth.projectors;
 	projectors.id = "simulated projectors";
-	return write_calibration(dir + "/ground_truth_projectors.yaml", projectors);
+	const std::string path = dir + "/ground_truth_projectors.yaml";
+	st = write_calibration(path, projectors);
+	bool masked = false;
+	for (const auto &m : truth.projector_masks)
+		masked |= !m.empty();
+	if (!st.ok() || !masked)
+		return st;
+	// The masks go into the same file (one file says which points a projector lights):
+	// calibration.yaml's format plus one key per masked projector, rewritten atomically.
+	std::ifstream in(path, std::ios::binary);
+	std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+	if (!in.good() && !in.eof())
+		return Status::error(-EIO, path + ": cannot read back");
+	if (!text.empty() && text.back() != '\n')
+		text += '\n';
+	for (size_t j = 0; j < truth.projector_masks.size(); j++) {
+		if (truth.projector_masks[j].empty())
+			continue;
+		text += "cam" + std::to_string(j) + "_slide_mask: [";
+		char buf[64];
+		for (size_t k = 0; k < truth.projector_masks[j].size(); k++) {
+			const cv::Point2d &q = truth.projector_masks[j][k];
+			std::snprintf(buf, sizeof buf, "%s%.4f, %.4f", k ? ", " : " ", q.x, q.y);
+			text += buf;
+		}
+		text += " ]\n";
+	}
+	return write_file_atomic(path, text.data(), text.size());
 }
 
 } // namespace facescan::sim

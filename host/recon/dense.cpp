@@ -1,0 +1,654 @@
+// Stage D: dense matching of one pair, seeded and bounded by the code. See dense.hpp.
+#include "recon/dense.hpp"
+
+#include "recon/meshing.hpp"
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::recon {
+
+namespace {
+
+cv::Matx33d rectified_K(const RectifiedPair &rp, int which)
+{
+	return cv::Matx33d(rp.f, 0, which == 0 ? rp.cx1 : rp.cx2, 0, rp.f, rp.cy, 0, 0, 1);
+}
+
+double median(std::vector<double> v)
+{
+	if (v.empty())
+		return 0;
+	std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+	return v[v.size() / 2];
+}
+
+// Fills the triangle (pixel centres inside it) of `prior` with the linear interpolation of the
+// vertex disparities.
+void fill_triangle(cv::Mat *prior, const cv::Point2d p[3], const double d[3])
+{
+	const double x0 = std::min({p[0].x, p[1].x, p[2].x}), x1 = std::max({p[0].x, p[1].x, p[2].x});
+	const double y0 = std::min({p[0].y, p[1].y, p[2].y}), y1 = std::max({p[0].y, p[1].y, p[2].y});
+	const int c0 = std::max(0, int(std::ceil(x0))), c1 = std::min(prior->cols - 1, int(std::floor(x1)));
+	const int r0 = std::max(0, int(std::ceil(y0))), r1 = std::min(prior->rows - 1, int(std::floor(y1)));
+	const double den = (p[1].y - p[2].y) * (p[0].x - p[2].x) + (p[2].x - p[1].x) * (p[0].y - p[2].y);
+	if (std::fabs(den) < 1e-9)
+		return;
+	for (int y = r0; y <= r1; ++y) {
+		float *row = prior->ptr<float>(y);
+		for (int x = c0; x <= c1; ++x) {
+			const double l0 = ((p[1].y - p[2].y) * (x - p[2].x) + (p[2].x - p[1].x) * (y - p[2].y)) / den;
+			const double l1 = ((p[2].y - p[0].y) * (x - p[2].x) + (p[0].x - p[2].x) * (y - p[2].y)) / den;
+			const double l2 = 1 - l0 - l1;
+			if (l0 < -1e-9 || l1 < -1e-9 || l2 < -1e-9)
+				continue;
+			row[x] = float(l0 * d[0] + l1 * d[1] + l2 * d[2]);
+		}
+	}
+}
+
+// Zero-mean normalised cross-correlation of a and b over `block`-sized windows (CV_32F, -1..1),
+// and the standard deviation of a over the same windows.
+void window_ncc(const cv::Mat &a, const cv::Mat &b, int block, cv::Mat *ret_ncc, cv::Mat *ret_std_a)
+{
+	const cv::Size k(block, block);
+	cv::Mat ma, mb, maa, mbb, mab;
+	cv::boxFilter(a, ma, CV_32F, k);
+	cv::boxFilter(b, mb, CV_32F, k);
+	cv::boxFilter(a.mul(a), maa, CV_32F, k);
+	cv::boxFilter(b.mul(b), mbb, CV_32F, k);
+	cv::boxFilter(a.mul(b), mab, CV_32F, k);
+	cv::Mat va = maa - ma.mul(ma), vb = mbb - mb.mul(mb), cov = mab - ma.mul(mb);
+	cv::max(va, 1e-6, va);
+	cv::max(vb, 1e-6, vb);
+	cv::Mat den;
+	cv::sqrt(va.mul(vb), den);
+	*ret_ncc = cov / den;
+	cv::sqrt(va, *ret_std_a);
+}
+
+// Disparities (rectified pixels) a point can have in the pair when it lies within `depth_mm`
+// of where the two optical axes pass closest, and within ±`side_mm` across them.
+void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b, double depth_mm,
+			    double side_mm, double *ret_lo, double *ret_hi)
+{
+	const cv::Vec3d ca = a.centre(), cb = b.centre();
+	const cv::Vec3d da = a.R.t() * cv::Vec3d(0, 0, 1), db = b.R.t() * cv::Vec3d(0, 0, 1);
+	const cv::Vec3d w = ca - cb;
+	const double A = da.dot(da), B = da.dot(db), C = db.dot(db), D = da.dot(w), E = db.dot(w);
+	const double den = A * C - B * B;
+	const double sa = std::fabs(den) > 1e-9 ? (B * E - C * D) / den : 500, tb = std::fabs(den) > 1e-9 ? (A * E - B * D) / den : 500;
+	const cv::Vec3d centre = ((ca + da * sa) + (cb + db * tb)) * 0.5;
+	cv::Vec3d axis = da + db;
+	axis *= 1.0 / std::max(1e-9, cv::norm(axis));
+	cv::Vec3d side = axis.cross(a.R.t() * cv::Vec3d(0, 1, 0));
+	side *= 1.0 / std::max(1e-9, cv::norm(side));
+	const cv::Vec3d up = side.cross(axis);
+	double lo = 1e9, hi = -1e9;
+	for (int k = 0; k < 27; ++k) {
+		const cv::Vec3d p = centre + axis * ((k % 3 - 1) * depth_mm) + side * ((k / 3 % 3 - 1) * side_mm) +
+				    up * ((k / 9 - 1) * side_mm);
+		const cv::Vec3d ra = rp.R1 * (a.R * p + a.T), rb = rp.R2 * (b.R * p + b.T);
+		if (ra[2] <= 0 || rb[2] <= 0)
+			continue;
+		const double d = (rp.f * ra[0] / ra[2] + rp.cx1) - (rp.f * rb[0] / rb[2] + rp.cx2);
+		lo = std::min(lo, d);
+		hi = std::max(hi, d);
+	}
+	*ret_lo = lo;
+	*ret_hi = hi;
+}
+
+// The coarse stage: SGBM over a whole disparity range at half the matching resolution, for the
+// parts of the face no code point reaches (CV_32F at the matching resolution, NaN = none).
+cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, double hi, const DenseParams &params)
+{
+	cv::Mat l2, r2;
+	cv::pyrDown(left, l2);
+	cv::pyrDown(right, r2);
+	const int mind = int(std::floor(lo / 2)) - 2;
+	int nd = int(std::ceil((hi - lo) / 2)) + 4;
+	nd = std::min(((nd + 15) / 16) * 16, std::max(16, (l2.cols / 2 / 16) * 16));
+	const int block = params.block, cn = l2.channels();
+	cv::Ptr<cv::StereoSGBM> sgbm =
+		cv::StereoSGBM::create(mind, nd, block, params.p1_factor * cn * block * block,
+				       params.p2_factor * cn * block * block, 1, 31, 10, params.speckle_window / 4, 1,
+				       cv::StereoSGBM::MODE_SGBM_3WAY);
+	cv::Mat d16;
+	sgbm->compute(l2, r2, d16);
+	cv::Mat coarse(l2.size(), CV_32F);
+	for (int y = 0; y < l2.rows; ++y) {
+		const short *dr = d16.ptr<short>(y);
+		float *cr = coarse.ptr<float>(y);
+		for (int x = 0; x < l2.cols; ++x)
+			cr[x] = dr[x] >= mind * 16 ? 2.f * dr[x] / 16.f : std::numeric_limits<float>::quiet_NaN();
+	}
+	cv::Mat out;
+	cv::resize(coarse, out, left.size(), 0, 0, cv::INTER_NEAREST);
+	return out;
+}
+
+} // namespace
+
+// The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
+// search where they are not (checked against the long triangles that bridge such holes, so the
+// coarse search cannot move the surface to another copy of the slide); the long triangles where
+// the coarse search found nothing.
+static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const RectifiedPair &rp, const CameraModel &a,
+			   const CameraModel &b, const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
+			   const DenseParams &params, DenseStats *stats)
+{
+	const bool coded = int(seeds.size()) >= params.min_seeds;
+	cv::Mat tight = coded ? disparity_prior(rp.size, seeds, seed_d, params.tight_edge_factor,
+						 params.extrapolate_spacings, &stats->median_spacing_px)
+			      : cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	cv::Mat loose = coded ? disparity_prior(rp.size, seeds, seed_d, params.max_seed_edge_factor,
+						 params.extrapolate_spacings, nullptr)
+			      : tight.clone();
+	if (!params.coarse)
+		return coded ? loose : tight;
+	double lo, hi;
+	if (coded) {
+		lo = *std::min_element(seed_d.begin(), seed_d.end());
+		hi = *std::max_element(seed_d.begin(), seed_d.end());
+		const double margin = 0.15 * (hi - lo) + 2 * params.residual_px;
+		lo -= margin;
+		hi += margin;
+	} else {
+		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &lo, &hi);
+		if (!(hi > lo))
+			return tight;
+	}
+	cv::Mat right;
+	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, params);
+	cv::Mat prior = tight;
+	for (int y = 0; y < prior.rows; ++y) {
+		float *pr = prior.ptr<float>(y);
+		const float *cr = coarse.ptr<float>(y), *lr = loose.ptr<float>(y);
+		for (int x = 0; x < prior.cols; ++x) {
+			if (pr[x] == pr[x])
+				continue;
+			const bool has_c = cr[x] == cr[x], has_l = lr[x] == lr[x];
+			(void)has_l;
+			if (has_c) {
+				pr[x] = cr[x];
+				stats->coarse_pixels++;
+			} else if (has_l) {
+				pr[x] = lr[x];
+			}
+		}
+	}
+	// The coarse disparity is blocky (half resolution, nearest); smooth it where it was used so
+	// the warp does not shear the squares.
+	return prior;
+}
+
+void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity)
+{
+	// The pair rectified again at twice the matching resolution, with the same geometry doubled,
+	// so that full-resolution x = 2 * matching x.
+	// Only the bounding box of the valid pixels is refined (the face is a fraction of the frame).
+	cv::Mat nz;
+	cv::findNonZero(valid, nz);
+	if (nz.empty())
+		return;
+	const cv::Rect roi = cv::boundingRect(nz);
+	const double k = params.refine_scale;
+	const cv::Size size(int(std::lround(roi.width * k)), int(std::lround(roi.height * k)));
+	const double ox = roi.x * k, oy = roi.y * k;
+	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
+	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
+	cv::Mat m1x, m1y, m2x, m2y, ga, gb, L, R;
+	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(rp.R1), cv::Mat(Ka), size, CV_32FC1, m1x, m1y);
+	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), cv::Mat(rp.R2), cv::Mat(Kb), size, CV_32FC1, m2x, m2y);
+	cv::cvtColor(frame_a, ga, cv::COLOR_BGR2GRAY);
+	cv::cvtColor(frame_b, gb, cv::COLOR_BGR2GRAY);
+	cv::remap(ga, L, m1x, m1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::remap(gb, R, m2x, m2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	L.convertTo(L, CV_32F);
+	R.convertTo(R, CV_32F);
+	// The disparity at full resolution (NaN-free: invalid pixels carry 0 and are masked).
+	// The right view is rectified with the left's column offset, so x stays x - disparity.
+	cv::Mat d0(roi.size(), CV_32F, cv::Scalar(0)), v32;
+	(*disparity)(roi).copyTo(d0, valid(roi));
+	valid(roi).convertTo(v32, CV_32F, 1.0 / 255);
+	cv::Mat D, W;
+	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
+	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
+	D *= k;
+	const cv::Size win(params.refine_window, params.refine_window);
+	cv::Mat muL;
+	cv::boxFilter(L, muL, CV_32F, win);
+	const cv::Mat Lz = L - muL;
+	cv::Mat mx(size, CV_32F), my(size, CV_32F);
+	for (int it = 0; it < params.refine_iterations; ++it) {
+		for (int y = 0; y < size.height; ++y) {
+			const float *dr = D.ptr<float>(y);
+			float *xr = mx.ptr<float>(y), *yr = my.ptr<float>(y);
+			for (int x = 0; x < size.width; ++x) {
+				xr[x] = float(x) - dr[x];
+				yr[x] = float(y);
+			}
+		}
+		cv::Mat Rw, g, muR, e, ge, gg, ng;
+		cv::remap(R, Rw, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+		cv::Sobel(Rw, g, CV_32F, 1, 0, 3, 1.0 / 8);
+		cv::boxFilter(Rw, muR, CV_32F, win);
+		e = Lz - (Rw - muR); // zero-mean: an exposure offset between the cameras is not a shift
+		cv::boxFilter(g.mul(e), ge, CV_32F, win);
+		cv::boxFilter(g.mul(g), gg, CV_32F, win);
+		// R(x - D - s) ≈ Rw(x) - s g, so the residual e = L - Rw is minimised by s = -Σge / Σgg.
+		const float min_gg = float(params.refine_min_gradient * params.refine_min_gradient);
+		for (int y = 0; y < size.height; ++y) {
+			float *dr = D.ptr<float>(y);
+			const float *ger = ge.ptr<float>(y), *ggr = gg.ptr<float>(y), *wr = W.ptr<float>(y);
+			for (int x = 0; x < size.width; ++x) {
+				if (wr[x] < 0.99f || ggr[x] < min_gg)
+					continue;
+				const float step = std::clamp(-ger[x] / ggr[x], -0.5f, 0.5f);
+				dr[x] += step;
+			}
+		}
+	}
+	// Back to the matching resolution: the full-resolution value at each matching pixel.
+	for (int y = 0; y < roi.height; ++y) {
+		float *out = disparity->ptr<float>(roi.y + y) + roi.x;
+		const uchar *vr = valid.ptr<uchar>(roi.y + y) + roi.x;
+		const int yy = std::min(size.height - 1, int(std::lround(y * k)));
+		for (int x = 0; x < roi.width; ++x) {
+			if (!vr[x])
+				continue;
+			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
+			out[x] = D.at<float>(yy, xx) / float(k);
+		}
+	}
+}
+
+cv::Mat has_value(const cv::Mat &map)
+{
+	// Not `map == map`: OpenCV's vectorised compare does not keep IEEE semantics for NaN.
+	CV_Assert(map.type() == CV_32F);
+	cv::Mat out(map.size(), CV_8U);
+	for (int y = 0; y < map.rows; ++y) {
+		const float *r = map.ptr<float>(y);
+		uchar *o = out.ptr<uchar>(y);
+		for (int x = 0; x < map.cols; ++x)
+			o[x] = std::isnan(r[x]) ? 0 : 255;
+	}
+	return out;
+}
+
+Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret)
+{
+	if (!(scale > 0.05 && scale <= 2))
+		return Status::error(-EINVAL, "dense: matching scale must be in (0.05, 2]");
+	const cv::Matx33d R = b.R * a.R.t();
+	const cv::Vec3d T = b.T - R * a.T;
+	if (cv::norm(T) < 1e-6)
+		return Status::error(-EINVAL, "dense: the pair's cameras are at the same place");
+	cv::Mat R1, R2, P1, P2, Q;
+	cv::stereoRectify(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(b.K), cv::Mat(b.dist), a.size, cv::Mat(R),
+			  cv::Mat(T), R1, R2, P1, P2, Q, 0);
+	RectifiedPair rp;
+	rp.R1 = cv::Matx33d(R1);
+	rp.R2 = cv::Matx33d(R2);
+	rp.size = cv::Size(int(std::lround(a.size.width * scale)), int(std::lround(a.size.height * scale)));
+	rp.f = scale * (a.K(0, 0) + a.K(1, 1) + b.K(0, 0) + b.K(1, 1)) / 4;
+	// Each camera's optical axis lands at the centre of its rectified image: converging cameras
+	// rotate apart, and one shared principal point would push one view out of the image.
+	const cv::Vec3d za = rp.R1 * cv::Vec3d(0, 0, 1), zb = rp.R2 * cv::Vec3d(0, 0, 1);
+	if (za[2] < 0.2 || zb[2] < 0.2)
+		return Status::error(-EINVAL, "dense: the pair's cameras converge by more than 78 degrees");
+	rp.cx1 = rp.size.width / 2.0 - rp.f * za[0] / za[2];
+	rp.cx2 = rp.size.width / 2.0 - rp.f * zb[0] / zb[2];
+	rp.cy = rp.size.height / 2.0 - rp.f * (za[1] / za[2] + zb[1] / zb[2]) / 2;
+	const cv::Vec3d cb = rp.R1 * (-(R.t() * T)); // b's centre in a's rectified frame
+	rp.baseline = cb[0];
+	if (std::fabs(cb[1]) + std::fabs(cb[2]) > 1e-6 * cv::norm(cb) + 1e-9)
+		return Status::error(-EINVAL, "dense: rectification left the baseline off the x axis");
+	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), R1, cv::Mat(rectified_K(rp, 0)), rp.size,
+				    CV_32FC1, rp.map1x, rp.map1y);
+	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), R2, cv::Mat(rectified_K(rp, 1)), rp.size,
+				    CV_32FC1, rp.map2x, rp.map2y);
+	*ret = std::move(rp);
+	return {};
+}
+
+std::vector<cv::Point2d> rectify_points(const RectifiedPair &rp, const CameraModel &cam, int which,
+					const std::vector<cv::Point2d> &pixels)
+{
+	std::vector<cv::Point2d> out;
+	if (pixels.empty())
+		return out;
+	cv::undistortPoints(pixels, out, cv::Mat(cam.K), cv::Mat(cam.dist), cv::Mat(which == 0 ? rp.R1 : rp.R2),
+			    cv::Mat(rectified_K(rp, which)),
+			    cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 30, 1e-9));
+	return out;
+}
+
+cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, double x, double y, double d)
+{
+	// x_a = f X/Z + cx1 and x_b = f (X - baseline)/Z + cx2, so d = f baseline / Z + cx1 - cx2.
+	const double z = rp.f * rp.baseline / (d - (rp.cx1 - rp.cx2));
+	const cv::Vec3d rect((x - rp.cx1) * z / rp.f, (y - rp.cy) * z / rp.f, z);
+	const cv::Vec3d cam = rp.R1.t() * rect;
+	return cv::Point3d(a.R.t() * (cam - a.T));
+}
+
+cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
+			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
+			double *ret_median_spacing_px)
+{
+	cv::Mat prior(size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	if (ret_median_spacing_px)
+		*ret_median_spacing_px = 0;
+	if (seeds_left.size() < 3)
+		return prior;
+	const std::vector<cv::Vec3i> tris = delaunay_2d(seeds_left);
+	std::vector<double> edges;
+	edges.reserve(tris.size() * 3);
+	for (const cv::Vec3i &t : tris)
+		for (int k = 0; k < 3; ++k)
+			edges.push_back(cv::norm(seeds_left[size_t(t[k])] - seeds_left[size_t(t[(k + 1) % 3])]));
+	const double spacing = median(edges);
+	if (ret_median_spacing_px)
+		*ret_median_spacing_px = spacing;
+	const double max_edge = max_edge_factor * spacing;
+	for (const cv::Vec3i &t : tris) {
+		cv::Point2d p[3];
+		double d[3], longest = 0;
+		for (int k = 0; k < 3; ++k) {
+			p[k] = seeds_left[size_t(t[k])];
+			d[k] = seed_disparity[size_t(t[k])];
+			longest = std::max(longest, cv::norm(seeds_left[size_t(t[k])] - seeds_left[size_t(t[(k + 1) % 3])]));
+		}
+		if (longest <= max_edge)
+			fill_triangle(&prior, p, d);
+	}
+	// Past the rim: the nearest prior value, out to `extrapolate_spacings` seed spacings.
+	const double reach = extrapolate_spacings * spacing;
+	if (reach < 1)
+		return prior;
+	cv::Mat invalid = ~has_value(prior);
+	if (cv::countNonZero(invalid) == invalid.rows * invalid.cols)
+		return prior;
+	cv::Mat dist, labels;
+	cv::distanceTransform(invalid, dist, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+	std::vector<float> value_of_label(1, 0.f);
+	for (int y = 0; y < prior.rows; ++y) {
+		const float *row = prior.ptr<float>(y);
+		for (int x = 0; x < prior.cols; ++x)
+			if (row[x] == row[x])
+				value_of_label.push_back(row[x]);
+	}
+	for (int y = 0; y < prior.rows; ++y) {
+		float *row = prior.ptr<float>(y);
+		const float *dr = dist.ptr<float>(y);
+		const int *lr = labels.ptr<int>(y);
+		for (int x = 0; x < prior.cols; ++x)
+			if (row[x] != row[x] && dr[x] <= reach && lr[x] > 0 && size_t(lr[x]) < value_of_label.size())
+				row[x] = value_of_label[size_t(lr[x])];
+	}
+	return prior;
+}
+
+Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug)
+{
+	DenseStats stats;
+	DenseCloud cloud;
+	cloud.cam_a = model.cam_a;
+	cloud.cam_b = model.cam_b;
+	if (frame_a.empty() || frame_b.empty() || frame_a.type() != CV_8UC3 || frame_b.type() != CV_8UC3)
+		return Status::error(-EINVAL, "dense: frames must be 8-bit 3-channel");
+	if (params.residual_px < 1 || params.residual_px > 64 || params.block < 1 || params.block % 2 == 0)
+		return Status::error(-EINVAL, "dense: residual_px must be 1..64 and block odd");
+	RectifiedPair rp;
+	Status s = rectify_pair(a, b, params.scale, &rp);
+	if (!s.ok())
+		return s;
+
+	// Seeds: the sparse model's matches in rectified coordinates.
+	std::vector<cv::Point2d> pa, pb;
+	pa.reserve(model.sources.size());
+	pb.reserve(model.sources.size());
+	for (const PointMatch &m : model.sources) {
+		pa.push_back(m.a);
+		pb.push_back(m.b);
+	}
+	const std::vector<cv::Point2d> ra = rectify_points(rp, a, 0, pa), rb = rectify_points(rp, b, 1, pb);
+	std::vector<cv::Point2d> seeds;
+	std::vector<double> seed_d;
+	for (size_t i = 0; i < ra.size(); ++i) {
+		if (!(ra[i].x >= 0 && ra[i].y >= 0 && ra[i].x < rp.size.width && ra[i].y < rp.size.height))
+			continue;
+		seeds.push_back(ra[i]);
+		seed_d.push_back(ra[i].x - rb[i].x);
+	}
+	stats.seeds = int(seeds.size());
+	cv::Mat left, right;
+	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::Mat prior = build_prior(left, frame_b, rp, a, b, seeds, seed_d, params, &stats);
+	// Only where the pattern falls: its squares and gaps give every window about one pitch wide
+	// a contrast that unlit skin, hair and the booth's walls (sensor noise only) do not have.
+	{
+		cv::Mat grey, g32, mean, sq;
+		cv::cvtColor(left, grey, cv::COLOR_BGR2GRAY);
+		grey.convertTo(g32, CV_32F);
+		const double pitch = stats.median_spacing_px > 0 ? 2 * stats.median_spacing_px : params.default_pitch_px;
+		const int win = std::max(5, int(std::lround(params.contrast_window_pitches * pitch)) | 1);
+		cv::boxFilter(g32, mean, CV_32F, cv::Size(win, win));
+		cv::boxFilter(g32.mul(g32), sq, CV_32F, cv::Size(win, win));
+		cv::Mat var = sq - mean.mul(mean);
+		const float min_var = float(params.min_pattern_contrast * params.min_pattern_contrast);
+		for (int y = 0; y < prior.rows; ++y) {
+			float *pr = prior.ptr<float>(y);
+			const float *vr = var.ptr<float>(y);
+			for (int x = 0; x < prior.cols; ++x)
+				if (pr[x] == pr[x] && vr[x] < min_var) {
+					pr[x] = std::numeric_limits<float>::quiet_NaN();
+					stats.unlit++;
+				}
+		}
+	}
+
+	// The left view rectified; the right one rectified and warped by the prior in one remap:
+	// warped(x, y) = right_rectified(x - prior(x, y), y).
+	cv::Mat warped;
+	cv::Mat wx(rp.size, CV_32F), wy(rp.size, CV_32F);
+	for (int y = 0; y < rp.size.height; ++y) {
+		const float *pr = prior.ptr<float>(y);
+		float *xr = wx.ptr<float>(y), *yr = wy.ptr<float>(y);
+		for (int x = 0; x < rp.size.width; ++x) {
+			const bool ok = pr[x] == pr[x];
+			stats.prior_pixels += ok;
+			xr[x] = ok ? float(x) - pr[x] : -1e4f;
+			yr[x] = float(y);
+		}
+	}
+	cv::Mat mx, my;
+	cv::remap(rp.map2x, mx, wx, wy, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(-1e4));
+	cv::remap(rp.map2y, my, wx, wy, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(-1e4));
+	cv::remap(frame_b, warped, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+
+	const int cn = left.channels();
+	const int nd = ((2 * params.residual_px + 15) / 16) * 16;
+	const int mind = -nd / 2;
+	cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(
+		mind, nd, params.block, params.p1_factor * cn * params.block * params.block,
+		params.p2_factor * cn * params.block * params.block, params.disp12_max_diff, 31, params.uniqueness,
+		params.speckle_window, params.speckle_range, cv::StereoSGBM::MODE_SGBM_3WAY);
+	// SGBM over the bounding box of the prior only (plus its own margins).
+	cv::Mat disp16(rp.size, CV_16S, cv::Scalar((mind - 1) * 16));
+	{
+		cv::Mat has = has_value(prior), nz;
+		cv::findNonZero(has, nz);
+		if (!nz.empty()) {
+			const int m = nd + params.block + 4;
+			cv::Rect roi = cv::boundingRect(nz);
+			roi = cv::Rect(roi.x - m, roi.y - params.block, roi.width + 2 * m, roi.height + 2 * params.block) &
+			      cv::Rect(cv::Point(0, 0), rp.size);
+			cv::Mat d;
+			sgbm->compute(left(roi), warped(roi), d);
+			d.copyTo(disp16(roi));
+		}
+	}
+
+	// Confidence: NCC of the left window and the right window at the matched disparity.
+	cv::Mat grey_l, grey_w, grey_l32, grey_w32;
+	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
+	cv::cvtColor(warped, grey_w, cv::COLOR_BGR2GRAY);
+	grey_l.convertTo(grey_l32, CV_32F);
+	cv::Mat rx(rp.size, CV_32F), ry(rp.size, CV_32F);
+	for (int y = 0; y < rp.size.height; ++y) {
+		const short *dr = disp16.ptr<short>(y);
+		float *xr = rx.ptr<float>(y), *yr = ry.ptr<float>(y);
+		for (int x = 0; x < rp.size.width; ++x) {
+			xr[x] = dr[x] >= mind * 16 ? float(x) - dr[x] / 16.f : float(x);
+			yr[x] = float(y);
+		}
+	}
+	cv::Mat matched_w;
+	cv::remap(grey_w, matched_w, rx, ry, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	matched_w.convertTo(grey_w32, CV_32F);
+	cv::Mat ncc, std_l;
+	window_ncc(grey_l32, grey_w32, params.block, &ncc, &std_l);
+
+	// Valid pixels: a prior, lit in both views, matched by SGBM (its left-right check passed).
+	cv::Mat valid(rp.size, CV_8U, cv::Scalar(0));
+	cv::Mat total(rp.size, CV_32F, cv::Scalar(0));
+	for (int y = 0; y < rp.size.height; ++y) {
+		const short *dr = disp16.ptr<short>(y);
+		const float *pr = prior.ptr<float>(y);
+		const uchar *gl = grey_l.ptr<uchar>(y), *gw = matched_w.ptr<uchar>(y);
+		const float *nr = ncc.ptr<float>(y), *sr = std_l.ptr<float>(y);
+		uchar *vr = valid.ptr<uchar>(y);
+		float *tr = total.ptr<float>(y);
+		for (int x = 0; x < rp.size.width; ++x) {
+			if (pr[x] != pr[x] || dr[x] < mind * 16)
+				continue;
+			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity)
+				continue;
+			stats.matched++;
+			// Inside a flat square the window has no texture and NCC says nothing: SGBM's
+			// smoothness carries the disparity across it from the square's edges.
+			if (sr[x] > 4 && nr[x] < params.min_confidence) {
+				stats.low_confidence++;
+				continue;
+			}
+			const float r = dr[x] / 16.f;
+			// At the edge of the search the true match may lie outside it.
+			if (std::fabs(r) > float(params.residual_px) - params.edge_margin_px) {
+				stats.at_search_edge++;
+				continue;
+			}
+			// The prior is read where the match landed: d = r + prior(x - r).
+			const int xs = int(std::lround(x - r));
+			const float p = xs >= 0 && xs < rp.size.width && pr[xs] == pr[xs] ? pr[xs] : pr[x];
+			tr[x] = r + p;
+			vr[x] = 255;
+		}
+	}
+	if (params.refine_iterations > 0)
+		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
+	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
+	// rim of the matched region are where matches go wrong: both are trimmed.
+	{
+		cv::Mat bad(rp.size, CV_8U, cv::Scalar(0));
+		const float g = float(params.max_disparity_gradient);
+		for (int y = 1; y + 1 < rp.size.height; ++y) {
+			const uchar *vu = valid.ptr<uchar>(y - 1), *vr = valid.ptr<uchar>(y), *vd = valid.ptr<uchar>(y + 1);
+			const float *tu = total.ptr<float>(y - 1), *tr = total.ptr<float>(y), *td = total.ptr<float>(y + 1);
+			uchar *br = bad.ptr<uchar>(y);
+			for (int x = 1; x + 1 < rp.size.width; ++x) {
+				if (!vr[x])
+					continue;
+				if ((vr[x - 1] && vr[x + 1] && std::fabs(tr[x + 1] - tr[x - 1]) > 2 * g) ||
+				    (vu[x] && vd[x] && std::fabs(td[x] - tu[x]) > 2 * g))
+					br[x] = 255;
+			}
+		}
+		if (params.rim_px > 0) {
+			// Only the region's outline is a rim: pinholes SGBM left inside it are filled first
+			// so that erosion does not widen them.
+			cv::Mat filled = valid.clone(), labels, region_stats, centroids;
+			const int nl = cv::connectedComponentsWithStats(~valid, labels, region_stats, centroids, 4, CV_32S);
+			for (int y = 0; y < rp.size.height; ++y) {
+				const int *lr = labels.ptr<int>(y);
+				uchar *fr = filled.ptr<uchar>(y);
+				for (int x = 0; x < rp.size.width; ++x)
+					if (lr[x] > 0 && lr[x] < nl &&
+					    region_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= params.pinhole_px)
+						fr[x] = 255;
+			}
+			cv::Mat eroded;
+			cv::erode(filled, eroded, cv::Mat(), cv::Point(-1, -1), params.rim_px);
+			eroded &= valid;
+			cv::Mat rim = valid & ~eroded;
+			stats.rim += cv::countNonZero(rim);
+			valid = eroded;
+		}
+		cv::dilate(bad, bad, cv::Mat(), cv::Point(-1, -1), 1);
+		cv::Mat steep = valid & bad;
+		stats.steep += cv::countNonZero(steep);
+		valid.setTo(0, bad);
+	}
+	// Islands are mismatches (a lit speck of hair, the rim of a shadow): only regions of at least
+	// `min_region_px` pixels stay.
+	{
+		cv::Mat labels, region_stats, centroids;
+		const int nl = cv::connectedComponentsWithStats(valid, labels, region_stats, centroids, 4, CV_32S);
+		std::vector<char> keep(size_t(nl), 0);
+		for (int l = 1; l < nl; ++l)
+			keep[size_t(l)] = region_stats.at<int>(l, cv::CC_STAT_AREA) >= params.min_region_px;
+		for (int y = 0; y < rp.size.height; ++y) {
+			const int *lr = labels.ptr<int>(y);
+			uchar *vr = valid.ptr<uchar>(y);
+			for (int x = 0; x < rp.size.width; ++x)
+				if (vr[x] && !keep[size_t(lr[x])]) {
+					vr[x] = 0;
+					stats.islands++;
+				}
+		}
+	}
+	cv::Mat border_px;
+	cv::distanceTransform(valid, border_px, cv::DIST_L2, 3);
+	cloud.points.reserve(size_t(stats.matched));
+	for (int y = 0; y < rp.size.height; ++y) {
+		const uchar *vr = valid.ptr<uchar>(y);
+		const float *tr = total.ptr<float>(y), *br = border_px.ptr<float>(y), *nr = ncc.ptr<float>(y);
+		const float *sr = std_l.ptr<float>(y);
+		for (int x = 0; x < rp.size.width; ++x) {
+			if (!vr[x])
+				continue;
+			const double den = tr[x] - (rp.cx1 - rp.cx2);
+			if (std::fabs(den) < 1e-6 || rp.f * rp.baseline / den <= 0)
+				continue;
+			const cv::Point3d w = rectified_to_world(rp, a, x, y, tr[x]);
+			const double z = rp.f * rp.baseline / den;
+			cloud.points.emplace_back(w);
+			cloud.confidence.push_back(sr[x] > 4 ? std::clamp(nr[x], 0.f, 1.f) : 0.5f);
+			cloud.border_mm.push_back(float(br[x] * z / rp.f));
+		}
+	}
+	stats.points = int(cloud.points.size());
+	if (ret_debug) {
+		ret_debug->left = left;
+		ret_debug->warped = warped;
+		ret_debug->prior = prior;
+		ret_debug->disparity = cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+		total.copyTo(ret_debug->disparity, valid);
+	}
+	*ret_cloud = std::move(cloud);
+	if (ret_stats)
+		*ret_stats = stats;
+	return {};
+}
+
+} // namespace facescan::recon

@@ -1,0 +1,151 @@
+// Stage D (dense): per consecutive camera pair, a sub-pixel correspondence for every lit pixel
+// both cameras see, seeded and bounded by the code's sparse correspondences.
+//
+// The pair is rectified (OpenCV stereoRectify's rotations, our own intrinsics so that each
+// camera's image centre stays in view however far the cameras converge). The triangulated sparse
+// matches give a disparity at each code point; a piecewise-linear prior over their Delaunay
+// triangulation (extended a little past its rim) says where every pixel's disparity lies. The
+// second image is warped by that prior and OpenCV's semi-global matcher searches only a narrow
+// residual range around it, so the search is cheap and cannot jump to another copy of the slide
+// (a neighbouring square of the same colour is a whole square pitch away, beyond the residual).
+// SGBM's own left-right check and speckle filter reject inconsistent pixels; a zero-mean NCC of
+// the matched windows gives each point a confidence.
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "recon/types.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <vector>
+
+namespace facescan::recon {
+
+struct DenseParams {
+	/// Matching resolution relative to the cameras' (0.5: 800x600 for 1600x1200 cameras).
+	double scale = 0.5;
+	/// Residual search range, ± pixels at the matching resolution, around the prior.
+	int residual_px = 8;
+	/// Matches within this many pixels of the residual range's ends are dropped.
+	float edge_margin_px = 1.0f;
+	/// SGBM block size (odd) and smoothness penalties per channel (P1, P2 = factor * cn * block²).
+	int block = 5;
+	int p1_factor = 8, p2_factor = 32;
+	int uniqueness = 10;	    // SGBM uniqueness ratio, percent
+	int disp12_max_diff = 1;    // left-right check, pixels at the matching resolution
+	int speckle_window = 80;    // connected components smaller than this are dropped...
+	int speckle_range = 2;	    // ... when they differ from their surroundings by more (px)
+	/// Seed triangles whose longest side is at most `tight_edge_factor` median seed spacings give
+	/// the prior; longer ones, up to `max_seed_edge_factor`, bridge holes and only bound (or,
+	/// where the coarse search finds nothing, give) the prior there.
+	double tight_edge_factor = 4.0;
+	double max_seed_edge_factor = 12.0;
+	/// The coarse search (half the matching resolution, the seeds' whole disparity range) fills
+	/// the prior where no small seed triangle reaches. With fewer than `min_seeds` seeds it is the
+	/// whole prior, over the disparities of the working volume: `volume_depth_mm` along the
+	/// cameras' axes and `volume_side_mm` across, around where the axes pass closest.
+	bool coarse = true;
+	double volume_depth_mm = 150, volume_side_mm = 120;
+	/// The prior is extended past its rim by this many median seed spacings (nearest value).
+	double extrapolate_spacings = 0.0;
+	int min_seeds = 6;	    // fewer seeds: the code gives no prior (the coarse search alone does)
+	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
+	int min_intensity = 12;
+	/// Pixels whose grey standard deviation over a window of `contrast_window_pitches` square
+	/// pitches (twice the median seed spacing; `default_pitch_px` without seeds) is below this
+	/// are not under the pattern: not matched.
+	double min_pattern_contrast = 6;
+	double contrast_window_pitches = 1.5;
+	double default_pitch_px = 16;
+	/// Points whose NCC over the block is below this are dropped (0..1).
+	double min_confidence = 0.5;
+	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
+	int min_region_px = 400;
+	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
+	/// default booth) and their neighbours are dropped; so is a rim of `rim_px` pixels.
+	double max_disparity_gradient = 1.5;
+	int rim_px = 2;
+	int pinhole_px = 60; // unmatched holes up to this size do not count as rim
+	/// Sub-pixel refinement after SGBM: Lucas-Kanade along the rows at `refine_scale` times the
+	/// matching resolution (2: the cameras' own), zero-mean windows of `refine_window` pixels,
+	/// where the window's mean squared gradient exceeds `refine_min_gradient`² (a flat square's
+	/// interior keeps SGBM's value). 0 iterations: off.
+	int refine_iterations = 3;
+	double refine_scale = 2.0;
+	int refine_window = 9;
+	double refine_min_gradient = 2.0;
+};
+
+/// One pair's dense points, world mm (before registration moves them).
+struct DenseCloud {
+	int cam_a = -1, cam_b = -1;
+	std::vector<cv::Point3f> points;
+	std::vector<float> confidence; // NCC of the matched windows, 0..1
+	std::vector<float> border_mm;  // distance to the border of the pair's matched region
+};
+
+struct DenseStats {
+	int seeds = 0;	       // sparse points used
+	int prior_pixels = 0;  // pixels with a prior (matching resolution)
+	int coarse_pixels = 0; // ... of which the coarse search gave the prior
+	int unlit = 0;	       // prior pixels dropped as not under the pattern
+	int matched = 0;       // pixels SGBM matched inside the prior
+	int low_confidence = 0; // dropped by NCC
+	int islands = 0;	// dropped as part of a small matched region
+	int at_search_edge = 0; // dropped: matched at the end of the residual range
+	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
+	int points = 0;	       // in the cloud
+	double median_spacing_px = 0; // of the seeds, matching resolution
+};
+
+/// What dense_pair saw, for `recon --debug`: the rectified left view, the right view warped by the
+/// prior (where the prior is right, the two line up), the prior and the final disparity (CV_32F,
+/// NaN where none).
+struct DensePairDebug {
+	cv::Mat left, warped, prior, disparity;
+};
+
+/// Rectification of a pair at a matching scale: rotations R1, R2 (camera → rectified), shared
+/// focal f and row centre cy, per-camera column centres, the baseline along the rectified x axis
+/// (mm, b's centre in a's rectified frame) and the maps for cv::remap.
+struct RectifiedPair {
+	cv::Matx33d R1, R2;
+	double f = 0, cx1 = 0, cx2 = 0, cy = 0, baseline = 0;
+	cv::Size size;
+	cv::Mat map1x, map1y, map2x, map2y; // CV_32F
+};
+
+/// 255 where a CV_32F map has a value, 0 where it is NaN.
+cv::Mat has_value(const cv::Mat &map);
+
+/// Builds the rectification of cameras a, b at `scale`. -EINVAL for a degenerate pair.
+Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, RectifiedPair *ret);
+
+/// Rectified coordinates of distorted pixels of camera a (which = 0) or b (which = 1).
+std::vector<cv::Point2d> rectify_points(const RectifiedPair &rp, const CameraModel &cam, int which,
+					const std::vector<cv::Point2d> &pixels);
+
+/// World point of rectified left pixel (x, y) with disparity d = x_a - x_b (rectified pixels).
+cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, double x, double y, double d);
+
+/// Piecewise-linear disparity prior over the seeds (rectified left pixel → disparity): CV_32F,
+/// NaN where there is none. Exposed for tests.
+/// Triangles longer than `max_edge_factor` median seed spacings are left out; past the rim the
+/// nearest value reaches `extrapolate_spacings` spacings.
+cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
+			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
+			double *ret_median_spacing_px);
+
+/// Refines `disparity` (rectified matching pixels, CV_32F, valid where `valid` != 0) in place by
+/// Lucas-Kanade along the rows on the pair rectified at params.refine_scale times `rp`'s scale.
+void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
+
+/// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
+/// the seeds). Frames are the pair's 8-bit BGR pattern frames.
+Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
+
+} // namespace facescan::recon

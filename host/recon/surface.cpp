@@ -1,0 +1,303 @@
+// Stage 9 (dense): fusion of the dense clouds over the view sphere. See surface.hpp.
+#include "recon/surface.hpp"
+
+#include "recon/fusion.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace facescan::recon {
+
+namespace {
+
+struct Sample {
+	float u, v, r, w; // grid coordinates (cells), radius mm, weight
+	int cloud;
+	cv::Point3f p;
+};
+
+} // namespace
+
+Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
+		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats)
+{
+	SurfaceStats stats;
+	if (!(params.spacing_mm > 0) || !(params.agree_mm > 0) || params.max_cells < 16)
+		return Status::error(-EINVAL, "surface: spacing, agreement and grid size must be positive");
+	std::vector<cv::Point3d> some;
+	size_t total = 0;
+	for (const DenseCloud &c : clouds)
+		total += c.points.size();
+	stats.input_points = int(total);
+	if (total < 3)
+		return Status::error(-ENODATA, "surface: no dense points to fuse");
+	const size_t stride = std::max<size_t>(1, total / 20000);
+	size_t k = 0;
+	for (const DenseCloud &c : clouds)
+		for (const cv::Point3f &p : c.points)
+			if (k++ % stride == 0)
+				some.emplace_back(p);
+	const ViewFrame vf = view_frame(some, cameras);
+
+	// Directions → angles; the grid step in angle is the spacing at the median radius.
+	std::vector<Sample> samples;
+	samples.reserve(total);
+	std::vector<double> radii;
+	float umin = 1e9f, umax = -1e9f, vmin = 1e9f, vmax = -1e9f;
+	for (size_t ci = 0; ci < clouds.size(); ++ci) {
+		const DenseCloud &c = clouds[ci];
+		for (size_t i = 0; i < c.points.size(); ++i) {
+			const cv::Vec3d d = cv::Vec3d(cv::Point3d(c.points[i]) - vf.centre);
+			const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
+			const double r = cv::norm(d);
+			if (!(r > 1e-6) || !std::isfinite(r))
+				continue;
+			const float u = float(std::atan2(x, z)), v = float(std::atan2(y, std::hypot(x, z)));
+			const double border = std::min<double>(c.border_mm[i], params.border_cap_mm);
+			const float w = float((border + params.border_floor_mm) * std::max(0.05f, c.confidence[i]));
+			samples.push_back({u, v, float(r), w, int(ci), c.points[i]});
+			umin = std::min(umin, u);
+			umax = std::max(umax, u);
+			vmin = std::min(vmin, v);
+			vmax = std::max(vmax, v);
+			if (samples.size() % 16 == 0)
+				radii.push_back(r);
+		}
+	}
+	if (samples.size() < 3 || radii.empty())
+		return Status::error(-ENODATA, "surface: no dense points in front of the view sphere's centre");
+	std::nth_element(radii.begin(), radii.begin() + long(radii.size() / 2), radii.end());
+	const double r_med = radii[radii.size() / 2];
+	double step = params.spacing_mm / r_med; // radians per cell
+	auto cells_for = [&](double st) {
+		return (long(double(umax - umin) / st) + 3) * (long(double(vmax - vmin) / st) + 3);
+	};
+	while (cells_for(step) > params.max_cells)
+		step *= 1.25;
+	stats.spacing_mm = step * r_med;
+	const int W = int(double(umax - umin) / step) + 3, H = int(double(vmax - vmin) / step) + 3;
+	for (Sample &s : samples) {
+		s.u = float((s.u - umin) / step) + 1;
+		s.v = float((s.v - vmin) / step) + 1;
+	}
+
+	// Pass 1: each cell's strongest sample (bilinear splat weight times the sample's own).
+	const size_t n = size_t(W) * size_t(H);
+	std::vector<float> best_r(n, 0.f), best_w(n, 0.f);
+	auto splat = [&](const Sample &s, auto &&fn) {
+		const int x0 = int(std::floor(s.u)), y0 = int(std::floor(s.v));
+		const float fx = s.u - float(x0), fy = s.v - float(y0);
+		const float wx[2] = {1 - fx, fx}, wy[2] = {1 - fy, fy};
+		for (int dy = 0; dy < 2; ++dy)
+			for (int dx = 0; dx < 2; ++dx) {
+				const int x = x0 + dx, y = y0 + dy;
+				if (x < 0 || y < 0 || x >= W || y >= H)
+					continue;
+				fn(size_t(y) * size_t(W) + size_t(x), wx[dx] * wy[dy] * s.w);
+			}
+	};
+	for (const Sample &s : samples)
+		splat(s, [&](size_t c, float w) {
+			if (w > best_w[c]) {
+				best_w[c] = w;
+				best_r[c] = s.r;
+			}
+		});
+	// Pass 2: the weighted mean of the samples that agree with the strongest one.
+	// A cell's vertex is the weighted mean of its samples' positions, not its centre's direction at
+	// their mean radius: on a surface slanted against the sphere the two differ by the slope times
+	// the samples' offset from the centre.
+	std::vector<cv::Point3f> sum_wp(n, cv::Point3f(0, 0, 0));
+	std::vector<float> sum_w(n, 0.f);
+	std::vector<unsigned char> from(n, 0); // bit per cloud (first 8)
+	const float agree = float(params.agree_mm);
+	for (const Sample &s : samples)
+		splat(s, [&](size_t c, float w) {
+			if (std::fabs(s.r - best_r[c]) > agree)
+				return;
+			sum_wp[c] += w * s.p;
+			sum_w[c] += w;
+			from[c] |= (unsigned char)(1u << (s.cloud & 7));
+		});
+	samples.clear();
+	samples.shrink_to_fit();
+	std::vector<float> radius(n, 0.f);
+	std::vector<cv::Point3f> pos(n, cv::Point3f(0, 0, 0));
+	const cv::Point3f centre(vf.centre);
+	const float min_w = float(params.min_weight);
+	for (size_t c = 0; c < n; ++c)
+		if (sum_w[c] >= min_w) {
+			pos[c] = sum_wp[c] * (1.f / sum_w[c]);
+			radius[c] = float(cv::norm(pos[c] - centre));
+			stats.cells++;
+			stats.merged += (from[c] & (from[c] - 1)) != 0;
+		}
+	// Smoothing: each vertex moves to the weighted mean of its agreeing 3x3 neighbourhood.
+	for (int pass = 0; pass < params.smooth_passes; ++pass) {
+		std::vector<cv::Point3f> next = pos;
+		for (int y = 1; y + 1 < H; ++y)
+			for (int x = 1; x + 1 < W; ++x) {
+				const size_t c = size_t(y) * size_t(W) + size_t(x);
+				if (radius[c] <= 0)
+					continue;
+				double sw = 0;
+				cv::Point3d swp(0, 0, 0);
+				for (int dy = -1; dy <= 1; ++dy)
+					for (int dx = -1; dx <= 1; ++dx) {
+						const size_t q = size_t(y + dy) * size_t(W) + size_t(x + dx);
+						if (radius[q] <= 0 || std::fabs(radius[q] - radius[c]) > agree)
+							continue;
+						const double w = sum_w[q] * (dx == 0 && dy == 0 ? 2.0 : 1.0);
+						sw += w;
+						swp += w * cv::Point3d(pos[q]);
+					}
+				next[c] = cv::Point3f(swp * (1.0 / sw));
+			}
+		pos.swap(next);
+		for (size_t c = 0; c < n; ++c)
+			if (radius[c] > 0)
+				radius[c] = float(cv::norm(pos[c] - centre));
+	}
+
+	// Outliers: a radius farther than `max_median_dev_mm` from the median of its neighbourhood is
+	// a mismatch (a dark nostril, an eye corner) the pair's own checks let through.
+	if (params.median_radius > 0) {
+		const int R = params.median_radius;
+		std::vector<float> next = radius, win;
+		for (int y = 0; y < H; ++y)
+			for (int x = 0; x < W; ++x) {
+				const size_t c = size_t(y) * size_t(W) + size_t(x);
+				if (radius[c] <= 0)
+					continue;
+				win.clear();
+				for (int dy = -R; dy <= R; ++dy)
+					for (int dx = -R; dx <= R; ++dx) {
+						const int xx = x + dx, yy = y + dy;
+						if (xx < 0 || yy < 0 || xx >= W || yy >= H)
+							continue;
+						const float q = radius[size_t(yy) * size_t(W) + size_t(xx)];
+						if (q > 0)
+							win.push_back(q);
+					}
+				std::nth_element(win.begin(), win.begin() + long(win.size() / 2), win.end());
+				if (std::fabs(win[win.size() / 2] - radius[c]) > float(params.max_median_dev_mm)) {
+					next[c] = 0;
+					stats.outliers++;
+				}
+			}
+		radius.swap(next);
+	}
+
+	// Vertices: one per cell with a radius.
+	Mesh mesh;
+	std::vector<int> vid(n, -1);
+	for (int y = 0; y < H; ++y)
+		for (int x = 0; x < W; ++x) {
+			const size_t c = size_t(y) * size_t(W) + size_t(x);
+			if (radius[c] <= 0)
+				continue;
+			vid[c] = int(mesh.positions.size());
+			mesh.positions.push_back(pos[c]);
+		}
+	// Triangles: two per grid square (one when a corner is missing), none across a jump.
+	const double max_edge = params.max_edge_steps * stats.spacing_mm;
+	const double max_edge2 = max_edge * max_edge;
+	auto edge_ok = [&](int i, int j) {
+		const cv::Point3f d = mesh.positions[size_t(i)] - mesh.positions[size_t(j)];
+		return double(d.dot(d)) <= max_edge2;
+	};
+	auto add = [&](int i, int j, int l) {
+		if (i < 0 || j < 0 || l < 0 || !edge_ok(i, j) || !edge_ok(j, l) || !edge_ok(l, i))
+			return;
+		// Outward: away from the sphere's centre. Grid (x right, y up) seen from outside is
+		// counter-clockwise for (i, j, l) = (x, y), (x+1, y), (x, y+1); check rather than trust.
+		const cv::Point3f a = mesh.positions[size_t(i)], b = mesh.positions[size_t(j)],
+				  c = mesh.positions[size_t(l)];
+		const cv::Point3f nrm = (b - a).cross(c - a);
+		const cv::Point3f out = (a + b + c) * (1.f / 3) - cv::Point3f(vf.centre);
+		if (nrm.dot(out) >= 0)
+			mesh.triangles.emplace_back(i, j, l);
+		else
+			mesh.triangles.emplace_back(i, l, j);
+	};
+	for (int y = 0; y + 1 < H; ++y)
+		for (int x = 0; x + 1 < W; ++x) {
+			const size_t c = size_t(y) * size_t(W) + size_t(x);
+			const int v00 = vid[c], v10 = vid[c + 1], v01 = vid[c + size_t(W)], v11 = vid[c + size_t(W) + 1];
+			const int present = (v00 >= 0) + (v10 >= 0) + (v01 >= 0) + (v11 >= 0);
+			if (present == 4) {
+				add(v00, v10, v11);
+				add(v00, v11, v01);
+			} else if (present == 3) {
+				if (v00 < 0)
+					add(v10, v11, v01);
+				else if (v10 < 0)
+					add(v00, v11, v01);
+				else if (v01 < 0)
+					add(v00, v10, v11);
+				else
+					add(v00, v10, v01);
+			}
+		}
+	// Pieces: a sheet split off the face by a gap (a rim of the crown seen at grazing angles, a
+	// speck of hair) is more often wrong than right; only pieces of at least `min_piece_fraction`
+	// of the largest one stay.
+	{
+		std::vector<int> parent(mesh.positions.size());
+		for (size_t i = 0; i < parent.size(); ++i)
+			parent[i] = int(i);
+		auto find = [&](int i) {
+			while (parent[size_t(i)] != i) {
+				parent[size_t(i)] = parent[size_t(parent[size_t(i)])];
+				i = parent[size_t(i)];
+			}
+			return i;
+		};
+		for (const cv::Vec3i &t : mesh.triangles)
+			for (int q = 1; q < 3; ++q) {
+				const int a = find(t[0]), b = find(t[q]);
+				if (a != b)
+					parent[size_t(a)] = b;
+			}
+		std::vector<int> size(parent.size(), 0);
+		for (const cv::Vec3i &t : mesh.triangles)
+			size[size_t(find(t[0]))]++;
+		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
+		const double min_size = params.min_piece_fraction * largest;
+		std::vector<cv::Vec3i> kept;
+		kept.reserve(mesh.triangles.size());
+		for (const cv::Vec3i &t : mesh.triangles) {
+			if (size[size_t(find(t[0]))] >= min_size)
+				kept.push_back(t);
+			else
+				stats.piece_triangles_dropped++;
+		}
+		mesh.triangles.swap(kept);
+	}
+
+	// Keep only vertices some triangle uses.
+	std::vector<int> remap(mesh.positions.size(), -1);
+	Mesh out;
+	for (cv::Vec3i &t : mesh.triangles)
+		for (int q = 0; q < 3; ++q) {
+			int &r = remap[size_t(t[q])];
+			if (r < 0) {
+				r = int(out.positions.size());
+				out.positions.push_back(mesh.positions[size_t(t[q])]);
+			}
+			t[q] = r;
+		}
+	out.triangles = std::move(mesh.triangles);
+	if (out.triangles.empty())
+		return Status::error(-ENODATA, "surface: no triangle survived over " + std::to_string(stats.cells) +
+						       " cells");
+	out.normals = vertex_normals(out.positions, out.triangles);
+	stats.vertices = int(out.positions.size());
+	stats.triangles = int(out.triangles.size());
+	*ret_mesh = std::move(out);
+	if (ret_stats)
+		*ret_stats = stats;
+	return {};
+}
+
+} // namespace facescan::recon

@@ -1,0 +1,49 @@
+// Stage 9 (dense): the pairs' registered dense clouds fused into one surface over the view
+// sphere (fusion.hpp's ViewFrame). Every point is splatted bilinearly onto a grid of directions
+// from the sphere's centre with the paper's distance-to-border weight (times its confidence);
+// per cell the samples that agree with its strongest one (another sheet or an outlier does not)
+// are averaged into one radius. One radius per direction means one sheet where the pairs
+// overlap, and the grid's own triangles join the pairs without a crack.
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "recon/dense.hpp"
+#include "recon/types.hpp"
+
+#include <vector>
+
+namespace facescan::recon {
+
+struct SurfaceParams {
+	double spacing_mm = 0.45;     // grid step on the sphere, at the surface's median radius
+	double agree_mm = 1.2;	      // samples farther than this from a cell's strongest are not averaged
+	double border_floor_mm = 0.5; // weight = min(border distance, cap) + floor
+	double border_cap_mm = 15;
+	/// A grid triangle is kept when its 3-D edges are at most this many grid steps long: steeper
+	/// than ~80 degrees against the sphere is a depth jump, not a surface.
+	double max_edge_steps = 6;
+	int smooth_passes = 1;	      // 3x3 averaging of agreeing neighbours' radii
+	double min_weight = 0.05;     // cells with less total weight are empty
+	long max_cells = 6000000;     // bigger grids take a coarser step (bounds memory)
+	int median_radius = 3;	      // cells: the neighbourhood of the outlier test (0: none)
+	double max_median_dev_mm = 1.0; // farther from the neighbourhood's median radius: an outlier
+	double min_piece_fraction = 0.02; // connected pieces smaller than this * the largest are dropped
+};
+
+struct SurfaceStats {
+	int input_points = 0;
+	int cells = 0;	     // grid cells with a radius
+	int merged = 0;	     // cells averaged from two or more pairs
+	int outliers = 0;    // cells dropped by the median test
+	int piece_triangles_dropped = 0; // triangles of pieces split off the main surface
+	int vertices = 0, triangles = 0;
+	double spacing_mm = 0;
+};
+
+/// Fuses `clouds` (world mm, registered) into `ret_mesh` (positions, triangles, normals).
+/// -ENODATA when nothing is left to mesh.
+Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
+		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats);
+
+} // namespace facescan::recon

@@ -1,0 +1,190 @@
+#!/usr/bin/env python3
+"""make bench: the random booth x head matrix, reconstructed by `facescan recon` and by the stock
+OpenCV SGBM baseline (build/bin/sgbm-baseline) on the same capture in the same run, both scored
+against the simulator's ground truth; writes docs/benchmarks.md.
+
+Usage: tools/bench.py BIN_DIR [--booths N] [--heads K] [--first-seed S] [--out FILE]
+Environment: BENCH_DIR (work directory, default build/bench), BENCH_BOOTHS, BENCH_HEADS.
+"""
+import argparse
+import datetime
+import json
+import os
+import resource
+import statistics
+import subprocess
+import sys
+import time
+
+FLOORS = {"rms_mm": 0.30, "completeness": 0.85, "face_vertices": 100000, "time_ratio": 0.5, "peak_mb": 600}
+
+
+def run_measured(cmd, log):
+    """Runs cmd as a child; returns (wall seconds, the child's peak RSS in MB)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.monotonic()
+    with open(log, "w") as f:
+        r = subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT)
+    wall = time.monotonic() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode != 0:
+        return None, None
+    # ru_maxrss of RUSAGE_CHILDREN is the largest child so far: run each measured command in a
+    # fresh python child so the figure is this command's own.
+    return wall, max(after.ru_maxrss, before.ru_maxrss) / 1024.0
+
+
+def measured(cmd, log):
+    """wall, peak MB of one command, each in its own process tree (see run_measured)."""
+    probe = subprocess.run([sys.executable, __file__, "--measure", log, "--"] + cmd,
+                           capture_output=True, text=True)
+    if probe.returncode != 0:
+        return None, None
+    wall, mb = probe.stdout.split()
+    return float(wall), float(mb)
+
+
+def evaluate(fs, mesh, capture, out_json):
+    r = subprocess.run([fs, "evaluate", mesh, capture, "--json", out_json], capture_output=True, text=True)
+    if r.returncode != 0:
+        return None
+    with open(out_json) as f:
+        return json.load(f)
+
+
+def main():
+    if len(sys.argv) > 2 and sys.argv[1] == "--measure":
+        log, cmd = sys.argv[2], sys.argv[4:]
+        wall, mb = run_measured(cmd, log)
+        if wall is None:
+            sys.exit(1)
+        print(wall, mb)
+        return
+    ap = argparse.ArgumentParser()
+    ap.add_argument("bin")
+    ap.add_argument("--booths", type=int, default=int(os.environ.get("BENCH_BOOTHS", 12)))
+    ap.add_argument("--heads", type=int, default=int(os.environ.get("BENCH_HEADS", 3)))
+    ap.add_argument("--first-seed", type=int, default=101)
+    ap.add_argument("--out", default="docs/benchmarks.md")
+    a = ap.parse_args()
+    fs = os.path.join(a.bin, "facescan")
+    base = os.path.join(a.bin, "sgbm-baseline")
+    work = os.environ.get("BENCH_DIR", "build/bench")
+    os.makedirs(work, exist_ok=True)
+    rows = []
+    for b in range(a.booths):
+        booth = a.first_seed + b
+        for k in range(a.heads):
+            head = booth * 10 + k
+            name = "booth%d-head%d" % (booth, head)
+            cap = os.path.join(work, name)
+            # A set rendered by an earlier run of the same simulator is reused (BENCH_FRESH=1: never).
+            if os.environ.get("BENCH_FRESH") != "1" and os.path.exists(os.path.join(cap, "ground_truth.ply")):
+                print("bench: %s: reusing the rendered set" % name, flush=True)
+            else:
+                subprocess.run(["rm", "-rf", cap], check=True)
+                print("bench: %s: simulate" % name, flush=True)
+                r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", "random",
+                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True)
+                if r.returncode != 0:
+                    print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
+                    sys.exit(1)
+            row = {"name": name, "booth": booth, "head": head}
+            drc, rep = cap + ".drc", cap + ".json"
+            row["recon_s"], row["peak_mb"] = measured([fs, "recon", cap, "-o", drc, "--report", rep], cap + "-recon.log")
+            row["base_s"], row["base_peak_mb"] = measured([base, cap, "-o", cap + "-sgbm.drc"], cap + "-sgbm.log")
+            row["recon"] = evaluate(fs, drc, cap, cap + "-eval.json") if row["recon_s"] else None
+            row["base"] = evaluate(fs, cap + "-sgbm.drc", cap, cap + "-sgbm-eval.json") if row["base_s"] else None
+            if row["recon_s"]:
+                with open(rep) as f:
+                    row["report"] = json.load(f)
+            rows.append(row)
+            e = row["recon"] or {}
+            print("bench: %s: recon %s s, RMS %.3f mm, completeness %.1f %%, %d face vertices; sgbm %s s" % (
+                name, row["recon_s"], e.get("rms_mm", float("nan")), 100 * e.get("completeness", 0),
+                e.get("face_vertices", 0), row["base_s"]), flush=True)
+    write(a.out, rows, a)
+
+
+def fmt(x, spec):
+    return spec % x if x is not None else "failed"
+
+
+def write(path, rows, a):
+    ok = [r for r in rows if r["recon"]]
+    lines = []
+    cpu = ""
+    try:
+        with open("/proc/cpuinfo") as f:
+            cpu = next(l.split(":", 1)[1].strip() for l in f if l.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    lines += ["# Benchmarks", "",
+              "Generated by `make bench` (tools/bench.py) on %s, %d cores (%s), release build." % (
+                  datetime.date.today().isoformat(), os.cpu_count() or 0, cpu), "",
+              "Every scene is a random booth and a random head from the simulator's documented ranges",
+              "(`facescan simulate --booth random --seed B --head random --head-seed H`, docs/simulator.md):",
+              "cameras, lenses, projectors (pitch on the face 6-20 mm, any quarter turn and roll, overlapping",
+              "or masked to zones), light, noise, the head's pose, its shape and appearance, and an error of a",
+              "good calibration (~0.3 px) in the calibration the reconstruction is given. %d booths x %d heads," % (
+                  a.booths, a.heads),
+              "booth seeds from %d. Each capture is reconstructed by `facescan recon` (dense, the default) and by" % a.first_seed,
+              "the stock OpenCV pipeline (`build/bin/sgbm-baseline`: stereoRectify, SGBM 3-way at half resolution",
+              "over the working volume's disparities, its left-right check and speckle filter, no decoding) in",
+              "the same run. Times are wall seconds of the whole command (reading the PNGs included), peak",
+              "memory the command's maximum resident set.", "",
+              "Reproduce one row: `build/bin/facescan simulate --booth random --seed B --head random --head-seed H",
+              "--out /tmp/s && build/bin/facescan recon /tmp/s -o /tmp/s.drc && build/bin/facescan evaluate /tmp/s.drc /tmp/s`.", "",
+              "| scene | RMS mm | median | p95 | completeness | face vertices | recon s | SGBM s | time ratio | peak MB | SGBM RMS | SGBM completeness | SGBM face vertices |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        e, b = r["recon"] or {}, r["base"] or {}
+        ratio = r["recon_s"] / r["base_s"] if r["recon_s"] and r["base_s"] else None
+        r["ratio"] = ratio
+        lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+            r["name"], fmt(e.get("rms_mm"), "%.3f"), fmt(e.get("median_mm"), "%.3f"), fmt(e.get("p95_mm"), "%.3f"),
+            fmt(100 * e["completeness"] if e else None, "%.1f %%"), fmt(e.get("face_vertices"), "%d"),
+            fmt(r["recon_s"], "%.2f"), fmt(r["base_s"], "%.2f"), fmt(ratio, "%.2f"), fmt(r["peak_mb"], "%.0f"),
+            fmt(b.get("rms_mm"), "%.3f"), fmt(100 * b["completeness"] if b else None, "%.1f %%"),
+            fmt(b.get("face_vertices"), "%d")))
+    lines += ["", "## Distribution and worst rows", "",
+              "| figure | floor | min | median | max | worst scene | scenes meeting the floor |", "|---|---|---|---|---|---|---|"]
+
+    def dist(label, floor, key, higher_better, scale=1.0, spec="%.3f"):
+        vals = [(key(r), r["name"]) for r in rows if key(r) is not None]
+        if not vals:
+            return
+        xs = [v for v, _ in vals]
+        worst = min(vals) if higher_better else max(vals)
+        meets = sum(1 for v in xs if (v >= floor if higher_better else v <= floor))
+        lines.append("| %s | %s %s | %s | %s | %s | %s | %d / %d |" % (
+            label, ">=" if higher_better else "<=", spec % (floor * scale), spec % (min(xs) * scale),
+            spec % (statistics.median(xs) * scale), spec % (max(xs) * scale), worst[1], meets, len(rows)))
+
+    dist("vertex RMS (mm)", FLOORS["rms_mm"], lambda r: r["recon"] and r["recon"]["rms_mm"], False)
+    dist("completeness within 1 mm (%)", FLOORS["completeness"], lambda r: r["recon"] and r["recon"]["completeness"],
+         True, 100, "%.1f")
+    dist("vertices on the face", FLOORS["face_vertices"], lambda r: r["recon"] and r["recon"]["face_vertices"], True,
+         1, "%d")
+    dist("recon time / SGBM time", FLOORS["time_ratio"], lambda r: r.get("ratio"), False, 1, "%.2f")
+    dist("peak memory (MB)", FLOORS["peak_mb"], lambda r: r["peak_mb"], False, 1, "%.0f")
+    failed = [r["name"] for r in rows if not r["recon"]]
+    if failed:
+        lines += ["", "Reconstruction failed on: " + ", ".join(failed)]
+    # Mean stage times over the scenes (ms).
+    stages = {}
+    for r in ok:
+        for k, v in r.get("report", {}).get("time_ms", {}).items():
+            stages.setdefault(k, []).append(v)
+    if stages:
+        lines += ["", "Mean stage times over the scenes (ms, from the recon reports): " + ", ".join(
+            "%s %.0f" % (k, statistics.mean(v)) for k, v in stages.items()) + "."]
+    lines += ["", "What limits each figure: docs/recon.md, \"Limits\"."]
+    with open(path + ".tmp", "w") as f:
+        f.write("\n".join(lines) + "\n")
+    os.replace(path + ".tmp", path)
+    print("bench: wrote %s" % path)
+
+
+if __name__ == "__main__":
+    main()
