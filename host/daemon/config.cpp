@@ -109,6 +109,14 @@ const std::vector<Key> &keys()
 		 path_in(&Config::share_dir, false), str_of(&Config::share_dir)},
 		{"spool_dir", "local queue for scans the share cannot take yet, and the daemon's state",
 		 path_in(&Config::spool_dir, false), str_of(&Config::spool_dir)},
+		{"share_marker", "a file that must exist at the share's root, or the share counts as unmounted (scans are spooled); empty: none",
+		 [](Config &c, const std::string &v) -> std::string {
+			 if (v.find('/') != std::string::npos || v == "." || v == "..")
+				 return "'" + v + "' is not a file name";
+			 c.share_marker = v;
+			 return "";
+		 },
+		 str_of(&Config::share_marker)},
 		{"socket_path", "unix control socket (mode 0660)", path_in(&Config::socket_path, false),
 		 str_of(&Config::socket_path)},
 		{"socket_group", "group that may use the socket; empty: the daemon's own group",

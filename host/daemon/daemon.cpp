@@ -151,7 +151,7 @@ struct Daemon::Impl {
 	std::deque<Msg> msgs;
 
 	Impl(Config c, Backends b)
-		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb)
+		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb, cfg.share_marker)
 	{
 	}
 

@@ -114,9 +114,9 @@ Status write_file_atomic(const std::string &dir, const std::string &name, const 
 	return Status();
 }
 
-Spool::Spool(std::string spool_dir, std::string share_dir, long min_free_mb)
+Spool::Spool(std::string spool_dir, std::string share_dir, long min_free_mb, std::string share_marker)
 	: queue_dir_(spool_dir + "/queue"), state_dir_(spool_dir + "/state"), share_dir_(std::move(share_dir)),
-	  min_free_mb_(min_free_mb)
+	  share_marker_(std::move(share_marker)), min_free_mb_(min_free_mb)
 {
 }
 
@@ -206,8 +206,13 @@ Status Spool::recover(std::vector<std::string> *ret_failed_scan_ids)
 
 Status Spool::share_ready(unsigned long long bytes) const
 {
-	struct stat st;
-	if (stat(share_dir_.c_str(), &st) < 0 || !S_ISDIR(st.st_mode))
+	// The storage driver's guard: an unmounted share's mount point is an empty local directory,
+	// and a scan written there would never reach the clinic.
+	int rc = fscan_storage_share_present(share_dir_.c_str(), share_marker_.c_str());
+	if (rc == -ENOENT && !share_marker_.empty() && access(share_dir_.c_str(), F_OK) == 0)
+		return Status::error(ENOENT, "share " + share_dir_ + " is not mounted (no " + share_marker_ +
+						     " at its root)");
+	if (rc < 0)
 		return Status::error(ENOENT, "share " + share_dir_ + " is missing");
 	struct statvfs vfs;
 	if (statvfs(share_dir_.c_str(), &vfs) < 0)
