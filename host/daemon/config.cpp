@@ -1,4 +1,6 @@
 #include "daemon/config.hpp"
+
+#include "capture/capture_set.hpp"
 #include "daemon/patient_id.hpp"
 
 #include <cerrno>
@@ -301,14 +303,12 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 
 Status load_config(const std::string &path, Config *ret_config)
 {
-	std::ifstream f(path, std::ios::binary);
-	if (!f)
-		return Status::error(ENOENT, path + ": cannot read the config file");
-	std::ostringstream ss;
-	ss << f.rdbuf();
-	if (ss.str().size() > 1 << 20)
-		return Status::error(EFBIG, path + ": config file larger than 1 MiB");
-	return parse_config(ss.str(), path, ret_config);
+	// A directory opened as a stream reads as empty: `--check` said ok to one.
+	std::string text;
+	Status s = read_regular_file(path, 1 << 20, &text);
+	if (!s.ok())
+		return Status::error(s.code(), s.message() + " (the config file)");
+	return parse_config(text, path, ret_config);
 }
 
 std::string default_config_text()

@@ -438,6 +438,11 @@ struct Daemon::Impl {
 			send_line(c, {{"ok", true}, {"state", state_name(sm.state())}});
 			break;
 		case Request::Cmd::button: {
+			if (cfg.mode != Mode::booth) {
+				// It would be ignored (on_button): say so instead of answering ok.
+				reply_error(c, "unsupported", "the button starts scans only in booth mode (mode = clinic)");
+				break;
+			}
 			Status b = be.mcu->simulate_button();
 			if (!b.ok())
 				reply_error(c, "unsupported", b.message());
@@ -476,6 +481,14 @@ struct Daemon::Impl {
 
 	Status begin_scan(const std::string &patient)
 	{
+		// A spool we cannot write would lose the scan after capture and reconstruction.
+		if (!sm.busy() && sm.state() != State::error) {
+			Status w = spool.writable();
+			if (!w.ok()) {
+				log(LOG_ERR, "scan refused: %s", w.message().c_str());
+				return Status::error(EAGAIN, "unavailable: " + w.message());
+			}
+		}
 		if (worker_running && worker_is_delivery)
 			join_worker_if_done(true);
 		Status s = sm.apply(Event::request);
@@ -1057,6 +1070,9 @@ Status Daemon::start()
 	if (!s.ok())
 		return s;
 	s = take_lock(d.cfg.socket_path + ".lock", "socket " + d.cfg.socket_path, &d.socket_lock_fd);
+	if (!s.ok())
+		return s;
+	s = d.spool.writable();
 	if (!s.ok())
 		return s;
 	s = d.bind_socket();

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
 #include <dirent.h>
 #include <fcntl.h>
@@ -88,6 +89,21 @@ Status mkdir_if_missing(const std::string &dir, mode_t mode)
 	return Status();
 }
 
+// 0 B, 812 KiB, 3.4 MiB, 2.0 GiB: "0 MiB free, needs 0 MiB" said nothing.
+std::string human_bytes(unsigned long long n)
+{
+	char buf[32];
+	if (n < 1024)
+		std::snprintf(buf, sizeof buf, "%llu B", n);
+	else if (n < (1ULL << 20))
+		std::snprintf(buf, sizeof buf, "%.0f KiB", double(n) / 1024);
+	else if (n < (1ULL << 30))
+		std::snprintf(buf, sizeof buf, "%.1f MiB", double(n) / (1 << 20));
+	else
+		std::snprintf(buf, sizeof buf, "%.1f GiB", double(n) / (1 << 30));
+	return buf;
+}
+
 void pause_ms(int ms)
 {
 	if (ms > 0)
@@ -147,6 +163,15 @@ size_t Spool::pending() const
 		if (access((queue_dir_ + "/" + e + "/manifest.json").c_str(), F_OK) == 0)
 			n++;
 	return n;
+}
+
+Status Spool::writable() const
+{
+	int rc = fscan_write_file_atomic(queue_dir_.c_str(), ".probe", "", 0, 0600);
+	if (rc < 0)
+		return Status::error(-rc, "spool " + queue_dir_ + " is not writable: " + std::strerror(-rc));
+	unlink((queue_dir_ + "/.probe").c_str());
+	return Status();
 }
 
 bool Spool::queued(const std::string &scan_id) const
@@ -220,8 +245,9 @@ Status Spool::share_ready(unsigned long long bytes) const
 	unsigned long long avail = static_cast<unsigned long long>(vfs.f_bavail) * vfs.f_frsize;
 	unsigned long long need = bytes + static_cast<unsigned long long>(min_free_mb_) * 1024 * 1024;
 	if (avail < need)
-		return Status::error(ENOSPC, "share " + share_dir_ + " has " + std::to_string(avail >> 20) +
-						     " MiB free, needs " + std::to_string(need >> 20) + " MiB");
+		return Status::error(ENOSPC, "share " + share_dir_ + " has " + human_bytes(avail) + " free, needs " +
+						     human_bytes(need) + " (the scan's " + human_bytes(bytes) +
+						     " + min_free_mb)");
 	if (access(share_dir_.c_str(), W_OK) < 0)
 		return errno_status(errno, "share " + share_dir_);
 	return Status();

@@ -49,6 +49,9 @@ public:
 	/// Delivers queued entries oldest first and stops at the first failure, which is returned
 	/// (-ENOENT: share missing, -ENOSPC: share full, -EIO...). Delivered entries go to ret.
 	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms);
+	/// Whether a scan can be spooled now: a probe file written (atomically) and removed in the
+	/// queue. -EROFS / -EACCES / -ENOSPC / -ENOTDIR ... with a message naming the spool.
+	Status writable() const;
 	/// Entries waiting in the queue.
 	size_t pending() const;
 	/// Whether scan `scan_id` waits in the queue, complete (its manifest written).
