@@ -20,7 +20,7 @@ FLOORS = {"rms_mm": 0.30, "completeness": 0.85, "face_vertices": 100000, "time_r
 
 
 def run_measured(cmd, log):
-    """Runs cmd as a child; returns (wall seconds, the child's peak RSS in MB)."""
+    """Runs cmd as a child; returns (wall seconds, CPU seconds, the child's peak RSS in MB)."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.monotonic()
     with open(log, "w") as f:
@@ -28,20 +28,21 @@ def run_measured(cmd, log):
     wall = time.monotonic() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
-        return None, None
+        return None, None, None
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     # ru_maxrss of RUSAGE_CHILDREN is the largest child so far: run each measured command in a
     # fresh python child so the figure is this command's own.
-    return wall, max(after.ru_maxrss, before.ru_maxrss) / 1024.0
+    return wall, cpu, max(after.ru_maxrss, before.ru_maxrss) / 1024.0
 
 
 def measured(cmd, log):
-    """wall, peak MB of one command, each in its own process tree (see run_measured)."""
+    """wall, CPU seconds, peak MB of one command, each in its own process tree (see run_measured)."""
     probe = subprocess.run([sys.executable, __file__, "--measure", log, "--"] + cmd,
                            capture_output=True, text=True)
     if probe.returncode != 0:
-        return None, None
-    wall, mb = probe.stdout.split()
-    return float(wall), float(mb)
+        return None, None, None
+    wall, cpu, mb = probe.stdout.split()
+    return float(wall), float(cpu), float(mb)
 
 
 def evaluate(fs, mesh, capture, out_json):
@@ -55,10 +56,10 @@ def evaluate(fs, mesh, capture, out_json):
 def main():
     if len(sys.argv) > 2 and sys.argv[1] == "--measure":
         log, cmd = sys.argv[2], sys.argv[4:]
-        wall, mb = run_measured(cmd, log)
+        wall, cpu, mb = run_measured(cmd, log)
         if wall is None:
             sys.exit(1)
-        print(wall, mb)
+        print(wall, cpu, mb)
         return
     ap = argparse.ArgumentParser()
     ap.add_argument("bin")
@@ -91,8 +92,8 @@ def main():
                     sys.exit(1)
             row = {"name": name, "booth": booth, "head": head}
             drc, rep = cap + ".drc", cap + ".json"
-            row["recon_s"], row["peak_mb"] = measured([fs, "recon", cap, "-o", drc, "--report", rep], cap + "-recon.log")
-            row["base_s"], row["base_peak_mb"] = measured([base, cap, "-o", cap + "-sgbm.drc"], cap + "-sgbm.log")
+            row["recon_s"], row["recon_cpu"], row["peak_mb"] = measured([fs, "recon", cap, "-o", drc, "--report", rep], cap + "-recon.log")
+            row["base_s"], row["base_cpu"], row["base_peak_mb"] = measured([base, cap, "-o", cap + "-sgbm.drc"], cap + "-sgbm.log")
             row["recon"] = evaluate(fs, drc, cap, cap + "-eval.json") if row["recon_s"] else None
             row["base"] = evaluate(fs, cap + "-sgbm.drc", cap, cap + "-sgbm-eval.json") if row["base_s"] else None
             if row["recon_s"]:
@@ -135,7 +136,7 @@ def write(path, rows, a):
               "memory the command's maximum resident set.", "",
               "Reproduce one row: `build/bin/facescan simulate --booth random --seed B --head random --head-seed H",
               "--out /tmp/s && build/bin/facescan recon /tmp/s -o /tmp/s.drc && build/bin/facescan evaluate /tmp/s.drc /tmp/s`.", "",
-              "| scene | RMS mm | median | p95 | completeness | face vertices | recon s | SGBM s | time ratio | peak MB | SGBM RMS | SGBM completeness | SGBM face vertices |",
+              "| scene | RMS mm | median | p95 | completeness | face vertices | recon s (CPU s) | SGBM s (CPU s) | time ratio | peak MB | SGBM RMS | SGBM completeness | SGBM face vertices |",
               "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         e, b = r["recon"] or {}, r["base"] or {}
@@ -144,7 +145,8 @@ def write(path, rows, a):
         lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
             r["name"], fmt(e.get("rms_mm"), "%.3f"), fmt(e.get("median_mm"), "%.3f"), fmt(e.get("p95_mm"), "%.3f"),
             fmt(100 * e["completeness"] if e else None, "%.1f %%"), fmt(e.get("face_vertices"), "%d"),
-            fmt(r["recon_s"], "%.2f"), fmt(r["base_s"], "%.2f"), fmt(ratio, "%.2f"), fmt(r["peak_mb"], "%.0f"),
+            fmt(r["recon_s"], "%.2f") + " (" + fmt(r["recon_cpu"], "%.2f") + ")",
+            fmt(r["base_s"], "%.2f") + " (" + fmt(r["base_cpu"], "%.2f") + ")", fmt(ratio, "%.2f"), fmt(r["peak_mb"], "%.0f"),
             fmt(b.get("rms_mm"), "%.3f"), fmt(100 * b["completeness"] if b else None, "%.1f %%"),
             fmt(b.get("face_vertices"), "%d")))
     lines += ["", "## Distribution and worst rows", "",
@@ -166,7 +168,9 @@ def write(path, rows, a):
          True, 100, "%.1f")
     dist("vertices on the face", FLOORS["face_vertices"], lambda r: r["recon"] and r["recon"]["face_vertices"], True,
          1, "%d")
-    dist("recon time / SGBM time", FLOORS["time_ratio"], lambda r: r.get("ratio"), False, 1, "%.2f")
+    dist("recon time / SGBM time (wall)", FLOORS["time_ratio"], lambda r: r.get("ratio"), False, 1, "%.2f")
+    dist("recon CPU / SGBM CPU", FLOORS["time_ratio"],
+         lambda r: r["recon_cpu"] / r["base_cpu"] if r.get("recon_cpu") and r.get("base_cpu") else None, False, 1, "%.2f")
     dist("peak memory (MB)", FLOORS["peak_mb"], lambda r: r["peak_mb"], False, 1, "%.0f")
     failed = [r["name"] for r in rows if not r["recon"]]
     if failed:

@@ -113,6 +113,11 @@ cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, d
 	int nd = int(std::ceil((hi - lo) / 2)) + 4;
 	nd = std::min(((nd + 15) / 16) * 16, std::max(16, (l2.cols / 2 / 16) * 16));
 	const int block = params.block, cn = l2.channels();
+	// SGBM needs its whole range inside the image (OpenCV asserts deep inside otherwise).
+	if (mind + nd > l2.cols - block - 1)
+		nd = ((l2.cols - block - 1 - mind) / 16) * 16;
+	if (nd < 16 || mind < -l2.cols)
+		return cv::Mat(left.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
 	cv::Ptr<cv::StereoSGBM> sgbm =
 		cv::StereoSGBM::create(mind, nd, block, params.p1_factor * cn * block * block,
 				       params.p2_factor * cn * block * block, 1, 31, 10, params.speckle_window / 4, 1,
@@ -494,9 +499,11 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			cv::Rect roi = cv::boundingRect(nz);
 			roi = cv::Rect(roi.x - m, roi.y - params.block, roi.width + 2 * m, roi.height + 2 * params.block) &
 			      cv::Rect(cv::Point(0, 0), rp.size);
-			cv::Mat d;
-			sgbm->compute(left(roi), warped(roi), d);
-			d.copyTo(disp16(roi));
+			if (roi.width > nd + params.block + 1) {
+				cv::Mat d;
+				sgbm->compute(left(roi), warped(roi), d);
+				d.copyTo(disp16(roi));
+			}
 		}
 	}
 

@@ -72,8 +72,14 @@ int run_pair(const cv::Mat &fa, const cv::Mat &fb, const CameraModel &a, const C
 		dmin = std::min(dmin, xa - xb);
 		dmax = std::max(dmax, xa - xb);
 	}
-	const int mind = int(std::floor(dmin)), nd = std::max(16, int(std::ceil((dmax - dmin) / 16)) * 16);
+	const int mind = int(std::floor(dmin));
+	int nd = std::max(16, int(std::ceil((dmax - dmin) / 16)) * 16);
 	const int block = 5;
+	// The whole range must fit in the image (OpenCV asserts inside SGBM otherwise).
+	if (mind + nd > size.width - block - 1)
+		nd = ((size.width - block - 1 - mind) / 16) * 16;
+	if (nd < 16 || mind < -size.width)
+		return 0;
 	if (getenv("SGBM_BASELINE_VERBOSE"))
 		std::fprintf(stderr, "pair: disparities %d + %d\n", mind, nd);
 	cv::Ptr<cv::StereoSGBM> sgbm = cv::StereoSGBM::create(mind, nd, block, 8 * 3 * block * block,

@@ -205,7 +205,7 @@ struct HeadLook {
 	bool shoulders = false;		// neck continues into shoulders and an upper chest
 };
 
-/// One scalar HeadLook member with its range (random_head_look() draws inside; make_head refuses
+/// One scalar HeadLook member with its range (random_head_appearance() draws inside; make_head refuses
 /// values outside).
 struct HeadLookRange {
 	const char *name;
