@@ -2,8 +2,12 @@
 #include "storage_internal.h"
 
 #include <errno.h>
+#include <limits.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 int fscan_storage_check_relpath(const char *relpath)
 {
@@ -90,4 +94,24 @@ int fscan_storage_share_free(struct fscan_storage *storage, uint64_t *ret_bytes)
 	if (!storage || !ret_bytes)
 		return -EINVAL;
 	return storage->ops->share_free(storage->ctx, ret_bytes);
+}
+
+int fscan_storage_share_present(const char *share_dir, const char *marker)
+{
+	struct stat st;
+	if (!share_dir)
+		return -EINVAL;
+	if (stat(share_dir, &st) < 0)
+		return -errno;
+	if (!S_ISDIR(st.st_mode))
+		return -ENOTDIR;
+	if (!marker || !*marker)
+		return 0;
+	if (strchr(marker, '/'))
+		return -EINVAL;
+	char path[PATH_MAX];
+	int n = snprintf(path, sizeof(path), "%s/%s", share_dir, marker);
+	if (n < 0 || (size_t)n >= sizeof(path))
+		return -ENAMETOOLONG;
+	return access(path, F_OK) == 0 ? 0 : -ENOENT;
 }

@@ -196,13 +196,7 @@ static int open_parent(struct posix *p, const char *relpath, const char **ret_na
 /* 0 when the share is there (and carries its marker, if one is configured), else -ENOENT. */
 static int share_present(struct posix *p)
 {
-	if (!p->marker)
-		return 0;
-	char path[PATH_MAX];
-	int n = snprintf(path, sizeof(path), "%s/%s", p->share, p->marker);
-	if (n < 0 || (size_t)n >= sizeof(path))
-		return -ENAMETOOLONG;
-	return access(path, F_OK) == 0 ? 0 : -ENOENT;
+	return fscan_storage_share_present(p->share, p->marker);
 }
 
 static int deliver(struct posix *p, const char *relpath, const void *data, size_t len)

@@ -1,4 +1,6 @@
 #include "daemon/config.hpp"
+
+#include "capture/capture_set.hpp"
 #include "daemon/patient_id.hpp"
 #include "dicom/dicom.hpp"
 
@@ -132,6 +134,14 @@ const std::vector<Key> &keys()
 		 path_in(&Config::share_dir, false), str_of(&Config::share_dir)},
 		{"spool_dir", "local queue for scans the share cannot take yet, and the daemon's state",
 		 path_in(&Config::spool_dir, false), str_of(&Config::spool_dir)},
+		{"share_marker", "a file that must exist at the share's root, or the share counts as unmounted (scans are spooled); empty: none",
+		 [](Config &c, const std::string &v) -> std::string {
+			 if (v.find('/') != std::string::npos || v == "." || v == "..")
+				 return "'" + v + "' is not a file name";
+			 c.share_marker = v;
+			 return "";
+		 },
+		 str_of(&Config::share_marker)},
 		{"socket_path", "unix control socket (mode 0660)", path_in(&Config::socket_path, false),
 		 str_of(&Config::socket_path)},
 		{"socket_group", "group that may use the socket; empty: the daemon's own group",
@@ -345,14 +355,12 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 
 Status load_config(const std::string &path, Config *ret_config)
 {
-	std::ifstream f(path, std::ios::binary);
-	if (!f)
-		return Status::error(ENOENT, path + ": cannot read the config file");
-	std::ostringstream ss;
-	ss << f.rdbuf();
-	if (ss.str().size() > 1 << 20)
-		return Status::error(EFBIG, path + ": config file larger than 1 MiB");
-	return parse_config(ss.str(), path, ret_config);
+	// A directory opened as a stream reads as empty: `--check` said ok to one.
+	std::string text;
+	Status s = read_regular_file(path, 1 << 20, &text);
+	if (!s.ok())
+		return Status::error(s.code(), s.message() + " (the config file)");
+	return parse_config(text, path, ret_config);
 }
 
 std::string default_config_text()

@@ -16,6 +16,7 @@ struct Config {
 	Mode mode = Mode::clinic;                // booth: the button starts scans; clinic: the socket
 	std::string share_dir = "/srv/facescan/share";  // the clinic share (mount point); never created
 	std::string spool_dir = "/var/spool/facescan";  // local queue + state; created if missing
+	std::string share_marker;                // file at the share's root proving it is mounted; "": none
 	std::string socket_path = "/run/facescan/facescand.sock";
 	std::string socket_group;                // group owning the socket (mode 0660); empty: ours
 	std::string camera_backend = "libcamera"; // libcamera | replay | simulated | fake

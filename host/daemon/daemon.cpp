@@ -154,7 +154,7 @@ struct Daemon::Impl {
 	std::deque<Msg> msgs;
 
 	Impl(Config c, Backends b)
-		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb)
+		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb, cfg.share_marker)
 	{
 	}
 
@@ -441,6 +441,11 @@ struct Daemon::Impl {
 			send_line(c, {{"ok", true}, {"state", state_name(sm.state())}});
 			break;
 		case Request::Cmd::button: {
+			if (cfg.mode != Mode::booth) {
+				// It would be ignored (on_button): say so instead of answering ok.
+				reply_error(c, "unsupported", "the button starts scans only in booth mode (mode = clinic)");
+				break;
+			}
 			Status b = be.mcu->simulate_button();
 			if (!b.ok())
 				reply_error(c, "unsupported", b.message());
@@ -484,6 +489,14 @@ struct Daemon::Impl {
 
 	Status begin_scan(const std::string &patient)
 	{
+		// A spool we cannot write would lose the scan after capture and reconstruction.
+		if (!sm.busy() && sm.state() != State::error) {
+			Status w = spool.writable();
+			if (!w.ok()) {
+				log(LOG_ERR, "scan refused: %s", w.message().c_str());
+				return Status::error(EAGAIN, "unavailable: " + w.message());
+			}
+		}
 		if (worker_running && worker_is_delivery)
 			join_worker_if_done(true);
 		Status s = sm.apply(Event::request);
@@ -683,7 +696,11 @@ struct Daemon::Impl {
 		post({Msg::Kind::reconstructed, recon_ms,
 		      "[2/3] reconstructed " + std::to_string(out.vertices) + " vertices in " +
 			      std::to_string(static_cast<long>(recon_ms)) + " ms",
-		      false, {{"vertices", out.vertices}, {"faces", out.faces}, {"recon_stage_ms", recon_stages}}});
+		      false,
+		      {{"vertices", out.vertices},
+		       {"faces", out.faces},
+		       {"recon_stage_ms", recon_stages},
+		       {"warnings", out.quality.is_object() ? out.quality.value("warnings", json::array()) : json::array()}}});
 
 		// writing: spool (the commit point), then the share
 		auto t2 = Clock::now();
@@ -777,6 +794,14 @@ struct Daemon::Impl {
 			current["vertices"] = m.data["vertices"];
 			current["faces"] = m.data["faces"];
 			current["recon_stage_ms"] = m.data["recon_stage_ms"];
+			// A suspect scan (wrong pattern, a camera that adds nothing) is said where the
+			// operator looks: the log and `facescan last`, not only the metadata.
+			if (m.data["warnings"].is_array() && !m.data["warnings"].empty()) {
+				current["warnings"] = m.data["warnings"];
+				for (const auto &w : m.data["warnings"])
+					if (w.is_string())
+						log(LOG_WARNING, "scan %s: %s", sid().c_str(), w.get<std::string>().c_str());
+			}
 			current["state"] = "writing";
 			progress("writing", m.text + "; [3/3] writing");
 			break;
@@ -1056,6 +1081,9 @@ Status Daemon::start()
 	if (!s.ok())
 		return s;
 	s = take_lock(d.cfg.socket_path + ".lock", "socket " + d.cfg.socket_path, &d.socket_lock_fd);
+	if (!s.ok())
+		return s;
+	s = d.spool.writable();
 	if (!s.ok())
 		return s;
 	s = d.bind_socket();

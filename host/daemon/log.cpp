@@ -3,6 +3,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
+#include <ctime>
 #include <mutex>
 
 namespace facescan::daemon {
@@ -32,8 +33,16 @@ void log(int priority, const char *fmt, ...)
 	}
 	if (std::getenv("JOURNAL_STREAM"))
 		std::fprintf(stderr, "<%d>%s\n", priority, buf);
-	else
-		std::fprintf(stderr, "facescand: %s\n", buf);
+	else {
+		// Outside journald nothing else stamps the line: UTC, to the millisecond.
+		timespec ts{};
+		clock_gettime(CLOCK_REALTIME, &ts);
+		tm t{};
+		gmtime_r(&ts.tv_sec, &t);
+		char when[32];
+		std::strftime(when, sizeof when, "%Y-%m-%dT%H:%M:%S", &t);
+		std::fprintf(stderr, "%s.%03ldZ facescand: %s\n", when, ts.tv_nsec / 1000000, buf);
+	}
 	std::fflush(stderr);
 }
 

@@ -27,6 +27,24 @@ Status validate_patient_id(const std::string &id)
 			return Status::error(EINVAL, "patient id may only contain letters, digits, '.', '_' "
 						     "and '-'");
 	}
+	// Windows and SMB (which clinics' shares are) cannot hold a folder named after a device,
+	// with or without an extension ("aux.txt"), nor one ending in a dot.
+	if (id.back() == '.')
+		return Status::error(EINVAL, "patient id ends with '.' (not a valid folder on Windows shares)");
+	std::string stem = id.substr(0, id.find('.'));
+	for (char &ch : stem)
+		if (ch >= 'a' && ch <= 'z')
+			ch = static_cast<char>(ch - 'a' + 'A');
+	static const char *const kReserved[] = {"CON", "PRN", "AUX", "NUL"};
+	bool reserved = false;
+	for (const char *r : kReserved)
+		reserved = reserved || stem == r;
+	if (stem.size() == 4 && (stem.compare(0, 3, "COM") == 0 || stem.compare(0, 3, "LPT") == 0) &&
+	    stem[3] >= '0' && stem[3] <= '9')
+		reserved = true;
+	if (reserved)
+		return Status::error(EINVAL, "patient id is a reserved device name on Windows shares (CON, PRN, "
+					     "AUX, NUL, COM0-9, LPT0-9)");
 	return Status();
 }
 

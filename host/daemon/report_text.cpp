@@ -57,6 +57,10 @@ std::string scan_text(const json &r)
 		out += "  error:      " + str(r, "error") + (r.contains("failed_stage") ? " (while " + str(r, "failed_stage") + ")" : "") + "\n";
 	if (r.contains("vertices"))
 		out += "  vertices:   " + str(r, "vertices") + ", faces: " + str(r, "faces") + "\n";
+	if (r.contains("warnings") && r["warnings"].is_array())
+		for (const auto &w : r["warnings"])
+			if (w.is_string())
+				out += "  warning:    " + w.get<std::string>() + "\n";
 	if (r.contains("stage_ms") && r["stage_ms"].is_object()) {
 		out += "  times:     ";
 		for (auto it = r["stage_ms"].begin(); it != r["stage_ms"].end(); ++it)

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
+#include <cstdio>
 #include <cstring>
 #include <dirent.h>
 #include <fcntl.h>
@@ -88,6 +89,21 @@ Status mkdir_if_missing(const std::string &dir, mode_t mode)
 	return Status();
 }
 
+// 0 B, 812 KiB, 3.4 MiB, 2.0 GiB: "0 MiB free, needs 0 MiB" said nothing.
+std::string human_bytes(unsigned long long n)
+{
+	char buf[32];
+	if (n < 1024)
+		std::snprintf(buf, sizeof buf, "%llu B", n);
+	else if (n < (1ULL << 20))
+		std::snprintf(buf, sizeof buf, "%.0f KiB", double(n) / 1024);
+	else if (n < (1ULL << 30))
+		std::snprintf(buf, sizeof buf, "%.1f MiB", double(n) / (1 << 20));
+	else
+		std::snprintf(buf, sizeof buf, "%.1f GiB", double(n) / (1 << 30));
+	return buf;
+}
+
 void pause_ms(int ms)
 {
 	if (ms > 0)
@@ -114,9 +130,9 @@ Status write_file_atomic(const std::string &dir, const std::string &name, const 
 	return Status();
 }
 
-Spool::Spool(std::string spool_dir, std::string share_dir, long min_free_mb)
+Spool::Spool(std::string spool_dir, std::string share_dir, long min_free_mb, std::string share_marker)
 	: queue_dir_(spool_dir + "/queue"), state_dir_(spool_dir + "/state"), share_dir_(std::move(share_dir)),
-	  min_free_mb_(min_free_mb)
+	  share_marker_(std::move(share_marker)), min_free_mb_(min_free_mb)
 {
 }
 
@@ -147,6 +163,15 @@ size_t Spool::pending() const
 		if (access((queue_dir_ + "/" + e + "/manifest.json").c_str(), F_OK) == 0)
 			n++;
 	return n;
+}
+
+Status Spool::writable() const
+{
+	int rc = fscan_write_file_atomic(queue_dir_.c_str(), ".probe", "", 0, 0600);
+	if (rc < 0)
+		return Status::error(-rc, "spool " + queue_dir_ + " is not writable: " + std::strerror(-rc));
+	unlink((queue_dir_ + "/.probe").c_str());
+	return Status();
 }
 
 bool Spool::queued(const std::string &scan_id) const
@@ -206,8 +231,13 @@ Status Spool::recover(std::vector<std::string> *ret_failed_scan_ids)
 
 Status Spool::share_ready(unsigned long long bytes) const
 {
-	struct stat st;
-	if (stat(share_dir_.c_str(), &st) < 0 || !S_ISDIR(st.st_mode))
+	// The storage driver's guard: an unmounted share's mount point is an empty local directory,
+	// and a scan written there would never reach the clinic.
+	int rc = fscan_storage_share_present(share_dir_.c_str(), share_marker_.c_str());
+	if (rc == -ENOENT && !share_marker_.empty() && access(share_dir_.c_str(), F_OK) == 0)
+		return Status::error(ENOENT, "share " + share_dir_ + " is not mounted (no " + share_marker_ +
+						     " at its root)");
+	if (rc < 0)
 		return Status::error(ENOENT, "share " + share_dir_ + " is missing");
 	struct statvfs vfs;
 	if (statvfs(share_dir_.c_str(), &vfs) < 0)
@@ -215,8 +245,9 @@ Status Spool::share_ready(unsigned long long bytes) const
 	unsigned long long avail = static_cast<unsigned long long>(vfs.f_bavail) * vfs.f_frsize;
 	unsigned long long need = bytes + static_cast<unsigned long long>(min_free_mb_) * 1024 * 1024;
 	if (avail < need)
-		return Status::error(ENOSPC, "share " + share_dir_ + " has " + std::to_string(avail >> 20) +
-						     " MiB free, needs " + std::to_string(need >> 20) + " MiB");
+		return Status::error(ENOSPC, "share " + share_dir_ + " has " + human_bytes(avail) + " free, needs " +
+						     human_bytes(need) + " (the scan's " + human_bytes(bytes) +
+						     " + min_free_mb)");
 	if (access(share_dir_.c_str(), W_OK) < 0)
 		return errno_status(errno, "share " + share_dir_);
 	return Status();

@@ -35,7 +35,9 @@ Status write_file_atomic(const std::string &dir, const std::string &name, const 
 
 class Spool {
 public:
-	Spool(std::string spool_dir, std::string share_dir, long min_free_mb);
+	/// share_marker: a file that must exist at the share's root for it to count as mounted
+	/// (drivers/storage's guard); "" checks only that the directory exists.
+	Spool(std::string spool_dir, std::string share_dir, long min_free_mb, std::string share_marker = "");
 
 	/// Creates <spool>/queue and <spool>/state when missing.
 	Status init();
@@ -47,6 +49,9 @@ public:
 	/// Delivers queued entries oldest first and stops at the first failure, which is returned
 	/// (-ENOENT: share missing, -ENOSPC: share full, -EIO...). Delivered entries go to ret.
 	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms);
+	/// Whether a scan can be spooled now: a probe file written (atomically) and removed in the
+	/// queue. -EROFS / -EACCES / -ENOSPC / -ENOTDIR ... with a message naming the spool.
+	Status writable() const;
 	/// Entries waiting in the queue.
 	size_t pending() const;
 	/// Whether scan `scan_id` waits in the queue, complete (its manifest written).
@@ -60,7 +65,7 @@ public:
 	}
 
 private:
-	std::string queue_dir_, state_dir_, share_dir_;
+	std::string queue_dir_, state_dir_, share_dir_, share_marker_;
 	long min_free_mb_;
 	std::vector<std::string> entries() const;
 };

@@ -317,8 +317,12 @@ Status WorkerReconstructor::run(const Capture &capture, ReconOutput *ret_output)
 	// A simulated set is scored against its ground truth, from the mesh as delivered.
 	recon::Mesh mesh;
 	Calibration cal;
-	if (mesh_io::decode_draco(out.drc.data(), out.drc.size(), &mesh).ok() &&
-	    read_calibration(input + "/calibration.yaml", &cal).ok())
+	if (!mesh_io::decode_draco(out.drc.data(), out.drc.size(), &mesh).ok())
+		return keep_for_retry(Status::error(EPROTO, "reconstruction worker: its mesh does not decode"));
+	// The counts of the file delivered (Draco may drop an unreferenced vertex).
+	out.vertices = static_cast<long>(mesh.positions.size());
+	out.faces = static_cast<long>(mesh.triangles.size());
+	if (read_calibration(input + "/calibration.yaml", &cal).ok())
 		add_simulated_accuracy(input, mesh, cal.cameras, &out);
 	if (wrote_set && !p_.keep_captures) {
 		// Delivered through the spool; the daemon's keep_captures decides about raw sets.

@@ -98,6 +98,22 @@ static void test_load_missing_file(void **)
 	assert_non_null(std::strstr(s.message().c_str(), "/nonexistent/facescand.conf"));
 }
 
+// `facescand --config DIR --check` said ok: a directory read as an empty config.
+static void test_load_directory_refused(void **)
+{
+	Config c;
+	facescan::Status s = load_config("/tmp", &c);
+	assert_int_equal(s.code(), -EINVAL);
+	assert_non_null(std::strstr(s.message().c_str(), "not a regular file"));
+	// the worker's deadline must come before the watchdog's
+	s = parse_config("recon_timeout_ms = 400000\n", "t.conf", &c);
+	assert_int_equal(s.code(), -EINVAL);
+	assert_non_null(std::strstr(s.message().c_str(), "stage_timeout_ms"));
+	assert_true(parse_config("share_marker = .facescan-share\nclient_timeout_ms = 800\n", "t.conf", &c).ok());
+	assert_string_equal(c.share_marker.c_str(), ".facescan-share");
+	assert_false(parse_config("share_marker = a/b\n", "t.conf", &c).ok());
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
@@ -106,6 +122,7 @@ int main()
 		cmocka_unit_test(test_refused_lines),
 		cmocka_unit_test(test_refused_config_leaves_output_untouched),
 		cmocka_unit_test(test_load_missing_file),
+		cmocka_unit_test(test_load_directory_refused),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

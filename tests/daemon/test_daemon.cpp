@@ -570,6 +570,35 @@ static void test_idle_and_slow_clients(void **)
 	assert_true(rig.scan("AFTER-SLOW")["ok"].get<bool>());
 }
 
+// A spool that cannot take the scan is found before anything is captured, not after.
+static void test_unwritable_spool_refuses_before_capture(void **)
+{
+	Rig rig;
+	const std::string queue = rig.cfg.spool_dir + "/queue";
+	assert_int_equal(rmdir(queue.c_str()), 0);
+	std::ofstream(queue) << "not a directory"; // as root, a file is what no write gets past
+	json r = rig.ask({{"cmd", "scan"}, {"patient", "RO-1"}});
+	std::printf("  %s\n", r.dump().c_str());
+	assert_false(r["ok"].get<bool>());
+	assert_string_equal(r["error"].get<std::string>().c_str(), "unavailable");
+	assert_non_null(std::strstr(r["message"].get<std::string>().c_str(), "not writable"));
+	assert_int_equal(rig.mcu->fired(), 0);
+	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::idle));
+	unlink(queue.c_str());
+	mkdir(queue.c_str(), 0750);
+	assert_true(rig.scan("RO-2")["ok"].get<bool>());
+}
+
+// In clinic mode the button starts nothing: the request says so instead of answering ok.
+static void test_button_in_clinic_mode(void **)
+{
+	Rig rig;
+	json r = rig.ask({{"cmd", "button"}});
+	assert_false(r["ok"].get<bool>());
+	assert_string_equal(r["error"].get<std::string>().c_str(), "unsupported");
+	assert_non_null(std::strstr(r["message"].get<std::string>().c_str(), "booth mode"));
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
@@ -587,6 +616,8 @@ int main()
 		cmocka_unit_test(test_second_instance_refused),
 		cmocka_unit_test(test_socket_path_not_a_socket),
 		cmocka_unit_test(test_idle_and_slow_clients),
+		cmocka_unit_test(test_unwritable_spool_refuses_before_capture),
+		cmocka_unit_test(test_button_in_clinic_mode),
 	};
 	return cmocka_run_group_tests(tests, setup, teardown);
 }

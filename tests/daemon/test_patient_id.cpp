@@ -84,6 +84,17 @@ static void test_other_characters(void **)
 	refused("a*b", "may only contain");
 }
 
+// Folder names Windows / SMB shares cannot hold were accepted (CON, NUL, aux.txt, a.).
+static void test_windows_reserved(void **)
+{
+	for (const char *id : {"CON", "con", "NUL", "aux.txt", "Prn", "COM1", "lpt9.x", "nul.tar.gz"})
+		refused(id, "reserved device name");
+	refused("a.", "ends with '.'");
+	refused("abc.", "ends with '.'");
+	for (const char *id : {"CONX", "COM10", "console", "NULL-1", "aux_1", "PAT.1"})
+		assert_true(validate_patient_id(id).ok());
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
@@ -91,6 +102,7 @@ int main()
 		cmocka_unit_test(test_too_long),      cmocka_unit_test(test_separators),
 		cmocka_unit_test(test_dotdot),        cmocka_unit_test(test_control_characters),
 		cmocka_unit_test(test_leading_dot),   cmocka_unit_test(test_other_characters),
+		cmocka_unit_test(test_windows_reserved),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

@@ -1,6 +1,7 @@
 // Spool and delivery: atomic writes, share missing then back (delivered once, in order),
 // interrupted entries reported failed, nothing partial on the share.
 #include "daemon/spool.hpp"
+#include "facescan/storage.h"
 
 
 #include <algorithm>
@@ -193,6 +194,37 @@ static void test_redelivery_after_crash_replaces(void **)
 		assert_true(n[0] != '.');
 }
 
+// An unmounted share leaves its mount point: an empty local directory. With a marker, a scan
+// waits in the spool instead of landing on the local disk, and is delivered once mounted.
+static void test_share_not_mounted(void **)
+{
+	const std::string spool = tmp + "/s9", share = tmp + "/share9";
+	mkdir(share.c_str(), 0755); // the bare mount point
+	Spool sp(spool, share, 0, ".facescan-share");
+	assert_true(sp.init().ok());
+	const std::string base = "20260101T000009Z_999999999999";
+	assert_true(sp.put(base, "999999999999", "P9", files_of(base), 0).ok());
+	std::vector<Delivered> d;
+	facescan::Status s = sp.deliver(&d, 0);
+	std::printf("  %s\n", s.message().c_str());
+	assert_int_equal(s.code(), -ENOENT);
+	assert_non_null(std::strstr(s.message().c_str(), "not mounted"));
+	assert_int_equal(d.size(), 0);
+	assert_int_equal(ls(share).size(), 0); // nothing on the local disk under the mount point
+	assert_int_equal(sp.pending(), 1);
+	std::ofstream(share + "/.facescan-share") << "";
+	assert_true(sp.deliver(&d, 0).ok());
+	assert_int_equal(d.size(), 1);
+	assert_int_equal(ls(share + "/P9").size(), 3);
+	// the driver's guard itself
+	assert_int_equal(fscan_storage_share_present(share.c_str(), ".facescan-share"), 0);
+	assert_int_equal(fscan_storage_share_present(share.c_str(), "no-such-marker"), -ENOENT);
+	assert_int_equal(fscan_storage_share_present(share.c_str(), nullptr), 0);
+	assert_int_equal(fscan_storage_share_present((tmp + "/nowhere").c_str(), nullptr), -ENOENT);
+	assert_int_equal(fscan_storage_share_present((share + "/.facescan-share").c_str(), nullptr), -ENOTDIR);
+	assert_int_equal(fscan_storage_share_present(share.c_str(), "a/b"), -EINVAL);
+}
+
 int main()
 {
 	const struct CMUnitTest tests[] = {
@@ -202,6 +234,7 @@ int main()
 		cmocka_unit_test(test_share_full),
 		cmocka_unit_test(test_interrupted_entry_reported_failed),
 		cmocka_unit_test(test_redelivery_after_crash_replaces),
+		cmocka_unit_test(test_share_not_mounted),
 	};
 	return cmocka_run_group_tests(tests, setup, teardown);
 }

@@ -294,7 +294,9 @@ static void test_real_worker_on_a_simulated_set(void **)
 		return;
 	}
 	TmpDir d;
-	const facescan::sim::Rig rig = facescan::sim::default_rig();
+	// Half resolution: this checks the worker's plumbing, tests/recon the reconstruction.
+	facescan::sim::Rig rig = facescan::sim::default_rig();
+	assert_true(facescan::sim::scale_rig(0.5, &rig).ok());
 	facescan::sim::Scene scene;
 	assert_true(facescan::sim::scene_by_name("default", &scene).ok());
 	facescan::Pattern pattern;
@@ -326,7 +328,7 @@ static void test_real_worker_on_a_simulated_set(void **)
 	assert_true(out.png.size() > 8 && out.png.compare(1, 3, "PNG") == 0);
 	const double completeness = out.quality["accuracy"]["completeness"].get<double>();
 	std::printf("  real worker: %ld vertices, completeness %.1f %%\n", out.vertices, 100 * completeness);
-	assert_true(completeness >= 0.8);
+	assert_true(completeness >= 0.5);
 	bool detect = false, worker = false;
 	for (const auto &st : out.stage_ms) {
 		detect = detect || st.first == "detect";
@@ -336,6 +338,40 @@ static void test_real_worker_on_a_simulated_set(void **)
 	assert_true(out.quality["warnings"].is_array() && out.quality["warnings"].empty());
 	struct stat st;
 	assert_int_not_equal(stat((p.spool_dir + "/captures/" + c.scan_name).c_str(), &st), 0);
+
+	// Another valid pattern id than the one projected: warned (few squares decode), and every
+	// camera matched in no pair is named.
+	{
+		std::ifstream in(dir + "/capture.json");
+		std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+		const size_t at = text.find(pattern.id);
+		assert_true(at != std::string::npos);
+		text.replace(at, pattern.id.size(), "fs-l3-14x19-s70");
+		std::ofstream(dir + "/capture.json") << text;
+	}
+	ReconOutput wrong;
+	s = w.run(c, &wrong);
+	if (!s.ok()) {
+		// as refused as it may be: the reason names the cause, the set is kept
+		std::printf("  wrong pattern refused: %s\n", s.message().c_str());
+		assert_non_null(std::strstr(s.message().c_str(), "capture kept in"));
+		return;
+	}
+	const json &warnings = wrong.quality["warnings"];
+	std::printf("  wrong pattern: %s\n", warnings.dump().c_str());
+	assert_true(warnings.is_array() && !warnings.empty());
+	assert_non_null(std::strstr(warnings[0].get<std::string>().c_str(), "decoded with pattern fs-l3-14x19-s70"));
+	for (const json &cam : wrong.quality["cameras"]) {
+		int matched = 0;
+		for (const json &pair : wrong.quality["pairs"])
+			if (pair["cameras"][0] == cam["camera"] || pair["cameras"][1] == cam["camera"])
+				matched += pair["matches"].get<int>();
+		const std::string named = "camera " + std::to_string(cam["camera"].get<int>()) + " contributes nothing";
+		bool warned = false;
+		for (const json &wtext : warnings)
+			warned = warned || wtext.get<std::string>().find(named) != std::string::npos;
+		assert_true(warned == (matched == 0));
+	}
 }
 
 int main()

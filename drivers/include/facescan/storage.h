@@ -84,6 +84,11 @@ int fscan_storage_pending(struct fscan_storage *storage);
 /* Bytes available to us on the share (statvfs f_bavail * f_frsize); -ENOENT share missing. */
 int fscan_storage_share_free(struct fscan_storage *storage, uint64_t *ret_bytes);
 
+/* The share-mounted guard on its own: 0 when share_dir is a directory carrying `marker` at its
+ * root (marker NULL or "": the directory alone is enough), -ENOENT when either is missing (an
+ * unmounted network share leaves an empty mount point without the marker), -ENOTDIR,
+ * -ENAMETOOLONG, -EINVAL (a marker with '/'). */
+int fscan_storage_share_present(const char *share_dir, const char *marker);
 /* The atomic write itself, usable on its own: <dir>/<name> gets exactly `len` bytes or stays
  * as it was. name is one path component. 0 or -errno (temp file removed on failure). */
 int fscan_write_file_atomic(const char *dir, const char *name, const void *data, size_t len, mode_t mode);
