@@ -20,12 +20,13 @@ void add_simulated_accuracy(const std::string &dir, const recon::Mesh &mesh, con
 	const auto t_eval = Clock::now();
 	recon::Mesh truth;
 	std::vector<CameraModel> lit_by;
-	Status s = eval::read_ground_truth(dir, &truth, &lit_by);
+	eval::EvalParams params; // the slide masks too, so the figures are `facescan evaluate`'s
+	Status s = eval::read_ground_truth(dir, &truth, &lit_by, &params.projector_masks);
 	if (s.code() == -ENOENT)
 		return;
 	eval::EvalResult e;
 	if (s.ok())
-		s = eval::evaluate(mesh, truth, cameras, lit_by, eval::EvalParams(), &e);
+		s = eval::evaluate(mesh, truth, cameras, lit_by, params, &e);
 	if (s.ok())
 		out->quality["accuracy"] = {{"rms_mm", e.rms_mm},
 					    {"median_mm", e.median_mm},
