@@ -189,7 +189,7 @@ check "writing before the second start" wait_state writing 50
 check "second facescand refused (exit 1)" [ "$rc" -eq 1 ]
 check "it says another is running" grep -q "another facescand (pid $DPID) is running" "$T/second.err"
 check "the running scan is delivered" wait_state idle 80
-check "LIVE-1 on the share" [ "$(visible_files LIVE-1)" -eq 3 ]
+check "LIVE-1 on the share" [ "$(visible_files LIVE-1)" -eq 5 ]
 check "last says LIVE-1 delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered' && \"$bin/facescan\" last | grep -q LIVE-1"
 stop_daemon
 

@@ -81,18 +81,24 @@ m = trimesh.load(sys.argv[1], force="mesh", process=False)
 v, n = m.vertices, m.vertex_normals
 lo, hi = v.min(0), v.max(0)
 c, size = (lo + hi) / 2, hi - lo
-facing = np.abs(n[:, 2]) > 0.85
+facing = np.abs(n[:, 2]) > 0.7
 def visible(i):  # nothing in front of it within 3 mm across
     d = np.hypot(v[:, 0] - v[i, 0], v[:, 1] - v[i, 1])
     return not np.any((d < 3) & (v[:, 2] > v[i, 2] + 0.5))
 def pick(tx, ty):
     cost = np.hypot(v[:, 0] - tx, v[:, 1] - ty) + np.where(facing, 0, 1e9)
-    for i in np.argsort(cost)[:200]:
+    for i in np.argsort(cost)[:3000]:
+        if cost[i] > 1e8:
+            break
         if visible(i):
             return v[i]
-    sys.exit("no visible front-facing vertex near (%.1f, %.1f)" % (tx, ty))
+    return None
 a = pick(c[0] - 0.25 * size[0], c[1])
-b = pick(c[0] + 0.25 * size[0], c[1] - 0.15 * size[1])
+b = None
+for dy in (-0.15, 0.0, 0.1, -0.25):  # the other cheek, wherever the scan has it
+    b = b if b is not None else pick(c[0] + 0.25 * size[0], c[1] + dy * size[1])
+if a is None or b is None:
+    sys.exit("no visible front-facing vertex on a cheek")
 print(" ".join("%.4f" % x for x in list(a) + list(b)), "%.4f" % np.linalg.norm(a - b))
 PY
 ) || { echo "FAIL: picking vertices"; exit 1; }
