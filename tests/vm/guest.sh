@@ -34,7 +34,7 @@ cd "$REPO" || poweroff
 for t in $GUEST_TESTS; do
 	name=$(basename "$t")
 	start=$(now_ms)
-	timeout -k 5 "${GUEST_TEST_TIMEOUT:-200}" "$t" >"$results/$name.log" 2>&1
+	timeout -k 5 "${GUEST_TEST_TIMEOUT:-330}" "$t" >"$results/$name.log" 2>&1
 	echo $? >"$results/$name.rc.tmp"
 	echo $(($(now_ms) - start)) >"$results/$name.ms"
 	mv "$results/$name.rc.tmp" "$results/$name.rc"
