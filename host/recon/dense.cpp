@@ -135,9 +135,9 @@ cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, d
 } // namespace
 
 // The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
-// search where they are not (checked against the long triangles that bridge such holes, so the
-// coarse search cannot move the surface to another copy of the slide); the long triangles where
-// the coarse search found nothing.
+// search where they are not (its range is the seeds' disparities plus a margin, so it cannot
+// reach another copy of the slide); the long triangles that bridge such holes where the coarse
+// search found nothing.
 static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const RectifiedPair &rp, const CameraModel &a,
 			   const CameraModel &b, const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
 			   const DenseParams &params, DenseStats *stats)
@@ -173,18 +173,14 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const Re
 		for (int x = 0; x < prior.cols; ++x) {
 			if (pr[x] == pr[x])
 				continue;
-			const bool has_c = cr[x] == cr[x], has_l = lr[x] == lr[x];
-			(void)has_l;
-			if (has_c) {
+			if (cr[x] == cr[x]) {
 				pr[x] = cr[x];
 				stats->coarse_pixels++;
-			} else if (has_l) {
-				pr[x] = lr[x];
+			} else {
+				pr[x] = lr[x]; // NaN where the long triangles do not reach either
 			}
 		}
 	}
-	// The coarse disparity is blocky (half resolution, nearest); smooth it where it was used so
-	// the warp does not shear the squares.
 	return prior;
 }
 
@@ -433,15 +429,16 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		seed_d.push_back(ra[i].x - rb[i].x);
 	}
 	stats.seeds = int(seeds.size());
-	cv::Mat left, right;
+	cv::Mat left, grey_l, grey_l32;
 	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
+	grey_l.convertTo(grey_l32, CV_32F);
 	cv::Mat prior = build_prior(left, frame_b, rp, a, b, seeds, seed_d, params, &stats);
 	// Only where the pattern falls: its squares and gaps give every window about one pitch wide
 	// a contrast that unlit skin, hair and the booth's walls (sensor noise only) do not have.
 	{
-		cv::Mat grey, g32, mean, sq;
-		cv::cvtColor(left, grey, cv::COLOR_BGR2GRAY);
-		grey.convertTo(g32, CV_32F);
+		cv::Mat mean, sq;
+		const cv::Mat &g32 = grey_l32;
 		const double pitch = stats.median_spacing_px > 0 ? 2 * stats.median_spacing_px : params.default_pitch_px;
 		const int win = std::max(5, int(std::lround(params.contrast_window_pitches * pitch)) | 1);
 		cv::boxFilter(g32, mean, CV_32F, cv::Size(win, win));
@@ -504,10 +501,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	}
 
 	// Confidence: NCC of the left window and the right window at the matched disparity.
-	cv::Mat grey_l, grey_w, grey_l32, grey_w32;
-	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
+	cv::Mat grey_w, grey_w32;
 	cv::cvtColor(warped, grey_w, cv::COLOR_BGR2GRAY);
-	grey_l.convertTo(grey_l32, CV_32F);
 	cv::Mat rx(rp.size, CV_32F), ry(rp.size, CV_32F);
 	for (int y = 0; y < rp.size.height; ++y) {
 		const short *dr = disp16.ptr<short>(y);

@@ -37,8 +37,8 @@ struct DenseParams {
 	int speckle_window = 80;    // connected components smaller than this are dropped...
 	int speckle_range = 2;	    // ... when they differ from their surroundings by more (px)
 	/// Seed triangles whose longest side is at most `tight_edge_factor` median seed spacings give
-	/// the prior; longer ones, up to `max_seed_edge_factor`, bridge holes and only bound (or,
-	/// where the coarse search finds nothing, give) the prior there.
+	/// the prior; longer ones, up to `max_seed_edge_factor`, bridge holes and give it there only
+	/// where the coarse search finds nothing.
 	double tight_edge_factor = 4.0;
 	double max_seed_edge_factor = 12.0;
 	/// The coarse search (half the matching resolution, the seeds' whole disparity range) fills
