@@ -43,7 +43,9 @@ struct Fixture {
 	std::vector<sim::BoardPose> poses;
 	std::string dir;				  // pose<k>_cam<i>.png
 	std::vector<std::vector<calib::BoardView>> views; // [pose][camera]
-	std::vector<std::vector<bool>> rendered;
+	// char, not bool: the setup's threads write neighbouring flags, and vector<bool> packs them
+	// into one word (a data race that drops views).
+	std::vector<std::vector<char>> rendered;
 };
 
 Fixture *fx;
@@ -69,7 +71,7 @@ int setup(void **)
 	fx->dir = tmpl;
 	const size_t P = fx->poses.size(), C = fx->truth.cameras.size();
 	fx->views.assign(P, std::vector<calib::BoardView>(C));
-	fx->rendered.assign(P, std::vector<bool>(C, false));
+	fx->rendered.assign(P, std::vector<char>(C, 0));
 	std::vector<sim::BoardCamera> cams;
 	for (const CameraModel &c : fx->truth.cameras)
 		cams.emplace_back(c, 1);
@@ -92,7 +94,7 @@ int setup(void **)
 					failures++;
 					continue;
 				}
-				fx->rendered[p][c] = true;
+				fx->rendered[p][c] = 1;
 			}
 			const std::string path = fx->dir + "/pose" + std::to_string(p) + "_cam" +
 						 std::to_string(c) + ".png";
