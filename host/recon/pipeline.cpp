@@ -113,12 +113,23 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		for (const Square &sq : dets[c].squares)
 			cr.with_corners += sq.has_corners;
 		report.cameras.push_back(cr);
-		if (cr.decoded < params.min_decoded_squares)
-			return Status::error(-ENODATA, "camera " + std::to_string(c) + ": no pattern found (" +
-							       std::to_string(cr.detected) + " squares, " +
-							       std::to_string(cr.decoded) + " decoded, need " +
-							       std::to_string(params.min_decoded_squares) + ")");
 	}
+	// A camera whose code is unreadable (a slide it sees too small or too rolled, a lens out of
+	// focus) still has the pattern's texture: its pairs get no seeds, and the dense stage searches
+	// them over the working volume. Only when no pair has the code in both views is there
+	// nothing to anchor the scan on.
+	const auto patterned = [&](size_t c) { return report.cameras[c].decoded >= params.min_decoded_squares; };
+	bool anchored = false;
+	for (size_t p = 0; p + 1 < n; ++p)
+		anchored = anchored || (patterned(p) && patterned(p + 1));
+	if (!anchored)
+		for (size_t c = 0; c < n; ++c)
+			if (!patterned(c))
+				return Status::error(-ENODATA, "camera " + std::to_string(c) + ": no pattern found (" +
+								       std::to_string(report.cameras[c].detected) +
+								       " squares, " + std::to_string(report.cameras[c].decoded) +
+								       " decoded, need " +
+								       std::to_string(params.min_decoded_squares) + ")");
 	timer.lap("detect");
 
 	// Stage 4, consecutive pairs.

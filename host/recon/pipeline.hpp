@@ -41,7 +41,8 @@ struct ReconParams {
 	bool texture_enabled = true;
 	/// Off: the paper's sparse mesh is the output (`--sparse`).
 	bool dense_enabled = true;
-	/// A camera whose frame yields fewer decoded squares than this has "no pattern".
+	/// A camera whose frame yields fewer decoded squares than this has "no pattern": its pairs run
+	/// unseeded; the scan fails only when no pair has the pattern in both views.
 	int min_decoded_squares = 12;
 	/// Frames whose intensity standard deviation is below this are blank (all white/black).
 	double min_frame_stddev = 2.0;

@@ -366,7 +366,7 @@ static void test_real_worker_on_a_simulated_set(void **)
 		for (const json &pair : wrong.quality["pairs"])
 			if (pair["cameras"][0] == cam["camera"] || pair["cameras"][1] == cam["camera"])
 				matched += pair["matches"].get<int>();
-		const std::string named = "camera " + std::to_string(cam["camera"].get<int>()) + " contributes nothing";
+		const std::string named = "camera " + std::to_string(cam["camera"].get<int>()) + " has no seeds";
 		bool warned = false;
 		for (const json &wtext : warnings)
 			warned = warned || wtext.get<std::string>().find(named) != std::string::npos;

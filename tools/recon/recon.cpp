@@ -179,17 +179,21 @@ static std::vector<std::string> report_warnings(const recon::ReconReport &r, con
 		out.push_back(buf);
 	}
 	for (const recon::CameraReport &c : r.cameras) {
-		int matched = 0;
+		int matched = 0, dense_points = 0;
 		std::string pairs;
 		for (const recon::PairReport &p : r.pairs)
 			if (p.cam_a == c.camera || p.cam_b == c.camera) {
 				matched += p.matches;
+				dense_points += p.dense.points;
 				pairs += (pairs.empty() ? "" : ", ") + std::to_string(p.cam_a) + "-" + std::to_string(p.cam_b);
 			}
 		if (matched == 0)
-			out.push_back("camera " + std::to_string(c.camera) + " contributes nothing: " +
-				      std::to_string(c.decoded) + " of " + std::to_string(c.detected) +
-				      " squares decoded, 0 matched in pair(s) " + (pairs.empty() ? "none" : pairs));
+			out.push_back("camera " + std::to_string(c.camera) + " has no seeds: " + std::to_string(c.decoded) +
+				      " of " + std::to_string(c.detected) + " squares decoded, 0 matched in pair(s) " +
+				      (pairs.empty() ? "none" : pairs) +
+				      (r.dense ? "; searched over the working volume: " + std::to_string(dense_points) +
+							 " dense points"
+					       : std::string("; it contributes nothing")));
 	}
 	return out;
 }
