@@ -94,6 +94,9 @@ endef
 $(foreach m,$(MAIN_SRC),$(eval $(call BIN_RULE,$(m))))
 
 .SECONDEXPANSION:
+# The test objects are intermediates of the pattern rule below; keep them, or every `make test`
+# recompiles all the tests (minutes under ASan).
+.SECONDARY:
 $(OUT)/tests/%: $(OUT)/obj/tests/%.$$(if $$(wildcard tests/$$*.cpp),cpp,c).o $(LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  LD    $@")
