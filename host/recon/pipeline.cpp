@@ -199,9 +199,11 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 
 	// Stage 9.
 	Mesh mesh;
-	s = fuse_models(models, cams, params.fusion, &mesh, &report.fusion);
-	if (!s.ok())
-		return s;
+	// With too few code matches for the paper's mesh the dense stage may still carry the scan
+	// (its unseeded search); the sparse error stands if it cannot.
+	const Status sparse_status = fuse_models(models, cams, params.fusion, &mesh, &report.fusion);
+	if (!sparse_status.ok() && !(sparse_status.code() == -ENODATA && params.dense_enabled))
+		return sparse_status;
 	timer.lap("fuse");
 
 	report.sparse_vertices = int(mesh.positions.size());
@@ -250,6 +252,8 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		}
 		timer.lap("fuse_dense");
 	}
+	if (!sparse_status.ok() && !report.dense)
+		return sparse_status;
 
 	// Stage 10.
 	if (params.texture_enabled) {
