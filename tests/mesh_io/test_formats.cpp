@@ -3,6 +3,7 @@
 // text format's printed precision), UVs, the texture pixel for pixel, and the triangle count.
 // Bad input is refused with the file named and nothing written.
 #include "mesh_io/mesh_io.hpp"
+#include "mesh_compare.hpp"
 
 #include <opencv2/imgproc.hpp>
 
@@ -24,6 +25,8 @@ extern "C" {
 
 using facescan::recon::Mesh;
 namespace mio = facescan::mesh_io;
+using facescan::testing::face_set;
+using facescan::testing::match_vertices;
 
 static std::string g_dir;
 
@@ -52,44 +55,6 @@ static Mesh make_face_like()
 	return m;
 }
 
-// Nearest original vertex of every read vertex; -1 where none is within tol.
-static std::vector<int> match_vertices(const Mesh &orig, const Mesh &got, double tol, double *ret_max)
-{
-	std::vector<int> map(got.positions.size(), -1);
-	double worst = 0;
-	for (size_t i = 0; i < got.positions.size(); ++i) {
-		double best = 1e30;
-		for (size_t k = 0; k < orig.positions.size(); ++k) {
-			const cv::Point3f d = got.positions[i] - orig.positions[k];
-			const double e = std::sqrt(double(d.dot(d)));
-			if (e < best) {
-				best = e;
-				map[i] = int(k);
-			}
-		}
-		worst = std::max(worst, best);
-		if (best > tol)
-			map[i] = -1;
-	}
-	*ret_max = worst;
-	return map;
-}
-
-static std::set<std::array<int, 3>> faces(const std::vector<cv::Vec3i> &tris, const std::vector<int> *map)
-{
-	std::set<std::array<int, 3>> s;
-	for (const cv::Vec3i &t : tris) {
-		std::array<int, 3> f{{t[0], t[1], t[2]}};
-		if (map)
-			for (int &v : f)
-				v = (*map)[size_t(v)];
-		while (f[0] > f[1] || f[0] > f[2]) // smallest first, winding kept
-			f = {{f[1], f[2], f[0]}};
-		s.insert(f);
-	}
-	return s;
-}
-
 // Same vertices (within tol), same triangles with the same winding, UVs within uv_tol.
 static void assert_same_mesh(const char *what, const Mesh &orig, const Mesh &got, double tol, double uv_tol)
 {
@@ -101,7 +66,7 @@ static void assert_same_mesh(const char *what, const Mesh &orig, const Mesh &got
 	assert_int_equal(got.triangles.size(), orig.triangles.size());
 	for (int v : map)
 		assert_true(v >= 0);
-	assert_true(faces(got.triangles, &map) == faces(orig.triangles, nullptr));
+	assert_true(face_set(got.triangles, &map) == face_set(orig.triangles, nullptr));
 	if (uv_tol >= 0) {
 		assert_int_equal(got.uvs.size(), got.positions.size());
 		double uv_worst = 0;

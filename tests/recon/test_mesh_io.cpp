@@ -1,5 +1,6 @@
 // Draco and PLY round trips: encode → decode → compare within the quantisation.
 #include "mesh_io/mesh_io.hpp"
+#include "mesh_compare.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -15,6 +16,8 @@ extern "C" {
 
 using facescan::recon::Mesh;
 namespace mio = facescan::mesh_io;
+using facescan::testing::face_set;
+using facescan::testing::match_vertices;
 
 // A bumpy 30x20 grid sheet, 60 x 40 mm, with UVs, normals and colours.
 static Mesh make_sheet()
@@ -36,44 +39,6 @@ static Mesh make_sheet()
 			m.triangles.emplace_back(a, a + nx + 1, a + nx);
 		}
 	return m;
-}
-
-// Maps each decoded vertex to the original within tol (positions are distinct by > tol).
-static std::vector<int> match_vertices(const Mesh &orig, const Mesh &dec, double tol)
-{
-	std::vector<int> map(dec.positions.size(), -1);
-	for (size_t i = 0; i < dec.positions.size(); ++i) {
-		double best = 1e30;
-		for (size_t k = 0; k < orig.positions.size(); ++k) {
-			const cv::Point3f d = dec.positions[i] - orig.positions[k];
-			const double e = std::sqrt(double(d.dot(d)));
-			if (e < best) {
-				best = e;
-				map[i] = int(k);
-			}
-		}
-		if (best > tol) {
-			std::printf("vertex %zu off by %.5f mm > %.5f\n", i, best, tol);
-			map[i] = -1;
-		}
-	}
-	return map;
-}
-
-static std::set<std::array<int, 3>> face_set(const std::vector<cv::Vec3i> &tris, const std::vector<int> *map)
-{
-	std::set<std::array<int, 3>> s;
-	for (const cv::Vec3i &t : tris) {
-		std::array<int, 3> f{{t[0], t[1], t[2]}};
-		if (map)
-			for (int &v : f)
-				v = (*map)[size_t(v)];
-		// Rotate so the smallest index leads; keeps the winding.
-		while (f[0] > f[1] || f[0] > f[2])
-			f = {{f[1], f[2], f[0]}};
-		s.insert(f);
-	}
-	return s;
 }
 
 static void test_draco_round_trip(void **)
