@@ -631,7 +631,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			const cv::Point3d w = rectified_to_world(rp, a, x, y, tr[x]);
 			const double z = rp.f * rp.baseline / den;
 			cloud.points.emplace_back(w);
-			cloud.confidence.push_back(sr[x] > 4 ? std::clamp(nr[x], 0.f, 1.f) : 0.5f);
+			cloud.confidence.push_back(sr[x] > 4 ? std::clamp(nr[x], 0.f, 1.f) : float(params.flat_confidence));
 			cloud.border_mm.push_back(float(br[x] * z / rp.f));
 		}
 	}

@@ -60,6 +60,11 @@ struct DenseParams {
 	double default_pitch_px = 16;
 	/// Points whose NCC over the block is below this are dropped (0..1).
 	double min_confidence = 0.5;
+	/// The confidence of a point whose window has no texture (inside a flat square, where SGBM's
+	/// smoothness carries the disparity in from the square's edges and NCC says nothing). Flat
+	/// points are about twice as far off the surface as textured ones (RMS 0.81 against 0.44 mm
+	/// on a bench scene with 18 mm squares), so where pairs overlap the textured sample leads.
+	double flat_confidence = 0.2;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the

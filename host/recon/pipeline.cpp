@@ -235,11 +235,15 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 				return Status::error(s.code(), "pair " + std::to_string(p) + "-" +
 								       std::to_string(p + 1) + ": " + s.message());
 		}
-		for (const RegistrationPair &rp : report.registration) {
-			if (!rp.applied || rp.model < 0 || size_t(rp.model) >= clouds.size())
-				continue;
-			for (cv::Point3f &q : clouds[size_t(rp.model)].points)
-				q = cv::Point3f(rp.R * cv::Vec3d(q.x, q.y, q.z) + rp.T);
+		{
+			std::vector<std::vector<cv::Point3f>> points(clouds.size());
+			for (size_t p = 0; p < clouds.size(); ++p)
+				points[p] = std::move(clouds[p].points);
+			s = register_dense(&points, params.registration, &report.registration);
+			for (size_t p = 0; p < clouds.size(); ++p)
+				clouds[p].points = std::move(points[p]);
+			if (!s.ok())
+				return s;
 		}
 		timer.lap("dense");
 		Mesh dense;
@@ -326,6 +330,8 @@ std::string report_json(const ReconReport &r)
 			       {"D_before_mm2", p.d_before}, {"D_after_mm2", p.d_after},
 			       {"D_before_all_mm2", p.d_before_all}, {"D_after_all_mm2", p.d_after_all},
 			       {"applied", p.applied},
+			       {"dense_before_mm", p.dense_before_mm}, {"dense_after_mm", p.dense_after_mm},
+			       {"applied_dense", p.applied_dense},
 			       {"T_mm", {p.T[0], p.T[1], p.T[2]}}});
 	j["registration"] = reg;
 	j["fusion"] = {{"input_points", r.fusion.input_points}, {"vertices", r.fusion.vertices},

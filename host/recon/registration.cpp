@@ -1,6 +1,8 @@
 // Stage 8: registration. See registration.hpp.
 #include "recon/registration.hpp"
 
+#include <opencv2/flann.hpp>
+
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
 
@@ -172,6 +174,69 @@ Status register_models(std::vector<PartialModel> *models, const RegistrationPara
 	}
 	if (ret_pairs)
 		*ret_pairs = std::move(pairs);
+	return {};
+}
+
+Status overlap_distance(const std::vector<cv::Point3f> &moving, const std::vector<cv::Point3f> &fixed,
+			const cv::Matx33d &R, const cv::Vec3d &T, const RegistrationParams &params,
+			double *ret_before_mm, double *ret_after_mm)
+{
+	if (moving.empty() || fixed.empty())
+		return Status::error(-ENODATA, "overlap: an empty cloud");
+	const int stride = std::max(1, params.dense_stride);
+	cv::Mat fixed_m(int(fixed.size()), 3, CV_32F, const_cast<cv::Point3f *>(fixed.data()));
+	cv::flann::Index index(fixed_m, cv::flann::KDTreeIndexParams(4));
+	const int n = int((moving.size() + size_t(stride) - 1) / size_t(stride));
+	cv::Mat q0(n, 3, CV_32F), q1(n, 3, CV_32F);
+	for (int i = 0; i < n; ++i) {
+		const cv::Point3f &p = moving[size_t(i) * size_t(stride)];
+		const cv::Vec3d m = R * cv::Vec3d(p.x, p.y, p.z) + T;
+		q0.at<cv::Vec3f>(i) = cv::Vec3f(p.x, p.y, p.z);
+		q1.at<cv::Vec3f>(i) = cv::Vec3f(m);
+	}
+	cv::Mat i0, d0, i1, d1; // squared distances
+	const cv::flann::SearchParams search(32);
+	index.knnSearch(q0, i0, d0, 1, search);
+	index.knnSearch(q1, i1, d1, 1, search);
+	const float reach2 = float(params.dense_reach_mm * params.dense_reach_mm);
+	double sum0 = 0, sum1 = 0;
+	int count = 0;
+	for (int i = 0; i < n; ++i) {
+		const float a = d0.at<float>(i), b = d1.at<float>(i);
+		if (a > reach2 && b > reach2)
+			continue;
+		sum0 += std::min(double(std::sqrt(a)), params.dense_cap_mm);
+		sum1 += std::min(double(std::sqrt(b)), params.dense_cap_mm);
+		count++;
+	}
+	if (count == 0)
+		return Status::error(-ENODATA, "overlap: the clouds do not overlap");
+	*ret_before_mm = sum0 / count;
+	*ret_after_mm = sum1 / count;
+	return {};
+}
+
+Status register_dense(std::vector<std::vector<cv::Point3f>> *clouds, const RegistrationParams &params,
+		      std::vector<RegistrationPair> *pairs)
+{
+	for (RegistrationPair &rp : *pairs) {
+		rp.applied_dense = false;
+		if (!rp.applied || rp.model < 0 || rp.onto < 0 || size_t(rp.model) >= clouds->size() ||
+		    size_t(rp.onto) >= clouds->size())
+			continue;
+		std::vector<cv::Point3f> &moving = (*clouds)[size_t(rp.model)];
+		Status s = overlap_distance(moving, (*clouds)[size_t(rp.onto)], rp.R, rp.T, params, &rp.dense_before_mm,
+					    &rp.dense_after_mm);
+		if (s.code() == -ENODATA)
+			continue; // nothing to judge by: no move (a lone cloud cannot be off its neighbour)
+		if (!s.ok())
+			return s;
+		if (!(rp.dense_after_mm < (1.0 - params.dense_min_improvement) * rp.dense_before_mm))
+			continue;
+		rp.applied_dense = true;
+		for (cv::Point3f &q : moving)
+			q = cv::Point3f(rp.R * cv::Vec3d(q.x, q.y, q.z) + rp.T);
+	}
 	return {};
 }
 

@@ -105,12 +105,96 @@ static void test_exact_calibration_left_alone(void **)
 		assert_true(models[m].points == before[m].points);
 }
 
+// A dense cloud: points on the sphere |x - c| = r, ~0.5 mm apart, with longitude in [lon0, lon1]
+// (degrees about y) and latitude within ±30°.
+static std::vector<cv::Point3f> sphere_patch(double lon0, double lon1)
+{
+	const cv::Vec3d c(0, 0, -60);
+	const double r = 85, step = 0.5 / r;
+	std::vector<cv::Point3f> out;
+	for (double lat = -0.52; lat <= 0.52; lat += step)
+		for (double lon = lon0 * CV_PI / 180; lon <= lon1 * CV_PI / 180; lon += step / std::cos(lat))
+			out.emplace_back(cv::Vec3f(c + r * cv::Vec3d(std::cos(lat) * std::sin(lon), std::sin(lat),
+								    std::cos(lat) * std::cos(lon))));
+	return out;
+}
+
+static void test_dense_overlap_distance(void **)
+{
+	const std::vector<cv::Point3f> a = sphere_patch(-40, 10), b = sphere_patch(-10, 40);
+	RegistrationParams params;
+	double before = 0, after = 0;
+	// On the same surface the distance is the sampling's (under half the 0.5 mm spacing) and that
+	// of the points just past the other cloud's edge (within reach); 0.8 mm along the normal near
+	// the overlap adds about that.
+	const cv::Vec3d out_of_surface(0, 0, 0.8);
+	assert_true(overlap_distance(a, b, cv::Matx33d::eye(), out_of_surface, params, &before, &after).ok());
+	std::printf("overlap distance: %.3f mm in place, %.3f mm moved 0.8 mm\n", before, after);
+	assert_true(before < 0.35);
+	assert_true(after - before > 0.5 && after - before < 0.9);
+	// Clouds far apart do not overlap.
+	const std::vector<cv::Point3f> far = sphere_patch(100, 140);
+	assert_int_equal(overlap_distance(a, far, cv::Matx33d::eye(), cv::Vec3d(0, 0, 0), params, &before, &after).code(),
+			 -ENODATA);
+	assert_int_equal(overlap_distance({}, b, cv::Matx33d::eye(), cv::Vec3d(0, 0, 0), params, &before, &after).code(),
+			 -ENODATA);
+}
+
+static void test_dense_check_keeps_good_fits_only(void **)
+{
+	const std::vector<cv::Point3f> left = sphere_patch(-40, 10), middle = sphere_patch(-15, 15),
+				       right = sphere_patch(-10, 40);
+	// The left cloud is off by a known motion and its code fit undoes it; the right cloud is in
+	// place and its code fit (a few noisy code points) would move it 0.7 mm.
+	const cv::Matx33d Roff = rotation(cv::Vec3d(0.0, 0.01, 0.005));
+	const cv::Vec3d Toff(1.0, -0.5, 0.8);
+	std::vector<std::vector<cv::Point3f>> clouds = {left, middle, right};
+	for (cv::Point3f &q : clouds[0])
+		q = cv::Point3f(Roff * cv::Vec3d(q.x, q.y, q.z) + Toff);
+	std::vector<RegistrationPair> pairs(2);
+	pairs[0].model = 0;
+	pairs[0].onto = 1;
+	pairs[0].applied = true;
+	pairs[0].R = Roff.t();
+	pairs[0].T = -(Roff.t() * Toff);
+	pairs[1].model = 2;
+	pairs[1].onto = 1;
+	pairs[1].applied = true;
+	pairs[1].R = rotation(cv::Vec3d(0.002, -0.003, 0.0));
+	pairs[1].T = cv::Vec3d(-0.2, 0.6, 0.3);
+	assert_true(register_dense(&clouds, {}, &pairs).ok());
+	for (const RegistrationPair &rp : pairs)
+		std::printf("model %d: dense overlap %.3f -> %.3f mm, kept %d\n", rp.model, rp.dense_before_mm,
+			    rp.dense_after_mm, rp.applied_dense);
+	assert_true(pairs[0].applied_dense);
+	assert_true(pairs[0].dense_after_mm < 0.4 * pairs[0].dense_before_mm);
+	double worst = 0;
+	for (size_t i = 0; i < left.size(); ++i)
+		worst = std::max(worst, double(cv::norm(clouds[0][i] - left[i])));
+	assert_true(worst < 1e-3);
+	assert_false(pairs[1].applied_dense);
+	assert_true(pairs[1].dense_after_mm > pairs[1].dense_before_mm);
+	assert_true(clouds[2] == right);
+	// A fit the code did not apply is not applied by the dense check either.
+	std::vector<RegistrationPair> none(1);
+	none[0].model = 0;
+	none[0].onto = 1;
+	none[0].R = pairs[0].R;
+	none[0].T = pairs[0].T;
+	std::vector<std::vector<cv::Point3f>> again = {left, middle};
+	assert_true(register_dense(&again, {}, &none).ok());
+	assert_false(none[0].applied_dense);
+	assert_true(again[0] == left);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_rigid_fit_exact),
 		cmocka_unit_test(test_recovers_known_motion),
 		cmocka_unit_test(test_exact_calibration_left_alone),
+		cmocka_unit_test(test_dense_overlap_distance),
+		cmocka_unit_test(test_dense_check_keeps_good_fits_only),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
