@@ -402,38 +402,55 @@ Status parse_calibration(const std::string &text, const std::string &path,
 	}
 	if (!fs.isOpened())
 		return Status::error(EINVAL, path + ": not a readable OpenCV YAML file");
+	// OpenCV's FileNode accessors throw cv::Exception where a node is not of the kind they
+	// assert (fs["camera_count"] on a document whose root is a sequence, "- 1"): uncaught, that
+	// aborted whatever read the file (found by tests/host/fuzz_calibration). Refused here, and
+	// anything else OpenCV throws while the fields are read is -EINVAL too.
+	const cv::FileNode root = fs.root();
+	if (!root.empty() && !root.isMap())
+		return Status::error(EINVAL, path + ": the top level is not a map of fields");
+	auto read_fields = [&](Calibration *calib) -> Status {
+		cv::FileNode count = fs["camera_count"];
+		if (count.empty() || !count.isInt())
+			return Status::error(EINVAL, path + ": missing or non-integer field 'camera_count'");
+		int n = int(count);
+		if (n < 2 || n > 16)
+			return Status::error(EINVAL, path + ": field 'camera_count' must be 2..16, got " +
+							     std::to_string(n));
+		cv::FileNode units = fs["units"];
+		if (units.empty() || !units.isString() || std::string(units) != "mm")
+			return Status::error(EINVAL, path + ": field 'units' must be \"mm\"");
+		if (fs["id"].isString())
+			calib->id = std::string(fs["id"]);
+		for (int i = 0; i < n; i++) {
+			CameraModel cam;
+			cv::Mat m;
+			Status st = read_matrix(fs, path, cam_key(i, "K"), 3, 3, &m);
+			if (!st.ok())
+				return st;
+			cam.K = cv::Matx33d(m);
+			if (!(st = read_matrix(fs, path, cam_key(i, "dist"), 1, 5, &m)).ok())
+				return st;
+			cam.dist = cv::Vec<double, 5>(m.ptr<double>());
+			if (!(st = read_matrix(fs, path, cam_key(i, "R"), 3, 3, &m)).ok())
+				return st;
+			cam.R = cv::Matx33d(m);
+			if (!(st = read_matrix(fs, path, cam_key(i, "T"), 3, 1, &m)).ok())
+				return st;
+			cam.T = cv::Vec3d(m.ptr<double>());
+			if (!(st = read_size(fs, path, cam_key(i, "size"), &cam.size)).ok())
+				return st;
+			calib->cameras.push_back(cam);
+		}
+		return {};
+	};
 	Calibration calib;
-	cv::FileNode count = fs["camera_count"];
-	if (count.empty() || !count.isInt())
-		return Status::error(EINVAL, path + ": missing or non-integer field 'camera_count'");
-	int n = int(count);
-	if (n < 2 || n > 16)
-		return Status::error(EINVAL, path + ": field 'camera_count' must be 2..16, got " +
-						     std::to_string(n));
-	cv::FileNode units = fs["units"];
-	if (units.empty() || !units.isString() || std::string(units) != "mm")
-		return Status::error(EINVAL, path + ": field 'units' must be \"mm\"");
-	if (fs["id"].isString())
-		calib.id = std::string(fs["id"]);
-	for (int i = 0; i < n; i++) {
-		CameraModel cam;
-		cv::Mat m;
-		Status st = read_matrix(fs, path, cam_key(i, "K"), 3, 3, &m);
-		if (!st.ok())
-			return st;
-		cam.K = cv::Matx33d(m);
-		if (!(st = read_matrix(fs, path, cam_key(i, "dist"), 1, 5, &m)).ok())
-			return st;
-		cam.dist = cv::Vec<double, 5>(m.ptr<double>());
-		if (!(st = read_matrix(fs, path, cam_key(i, "R"), 3, 3, &m)).ok())
-			return st;
-		cam.R = cv::Matx33d(m);
-		if (!(st = read_matrix(fs, path, cam_key(i, "T"), 3, 1, &m)).ok())
-			return st;
-		cam.T = cv::Vec3d(m.ptr<double>());
-		if (!(st = read_size(fs, path, cam_key(i, "size"), &cam.size)).ok())
-			return st;
-		calib.cameras.push_back(cam);
+	try {
+		Status fields = read_fields(&calib);
+		if (!fields.ok())
+			return fields;
+	} catch (const cv::Exception &e) {
+		return Status::error(EINVAL, path + ": not a readable calibration (OpenCV: " + e.err + ")");
 	}
 	Status st = check_calibration(path, calib);
 	if (!st.ok())
