@@ -87,6 +87,36 @@ int max_nesting(const std::string &text, bool yaml)
 	return worst;
 }
 
+// OpenCV 4.6's YAML parser loops forever on some texts of more than one document, e.g. the 29
+// bytes "%YAML:1.0\n---\n  u: m\n---\n- 1\n" (a second document's block sequence less indented
+// than the first's map; also with "..." or content before the only "---"; found by
+// tests/host/fuzz_calibration). A calibration is one document: a document marker ("---", or
+// the end marker "...") at the start of a line may come only once, before any content.
+bool one_yaml_document(const std::string &text)
+{
+	bool content = false;
+	int markers = 0;
+	for (size_t i = 0; i <= text.size();) {
+		size_t end = text.find_first_of("\r\n", i);
+		if (end == std::string::npos)
+			end = text.size();
+		const std::string line = text.substr(i, end - i);
+		i = end + 1;
+		std::string rest = line;
+		if (line.compare(0, 3, "---") == 0 || line.compare(0, 3, "...") == 0) {
+			if (content || line[0] == '.' || ++markers > 1)
+				return false;
+			rest = line.substr(3);
+		} else if (!content && !line.empty() && line[0] == '%') {
+			continue; // a directive
+		}
+		const size_t k = rest.find_first_not_of(" \t");
+		if (k != std::string::npos && rest[k] != '#')
+			content = true;
+	}
+	return true;
+}
+
 // What a calibration or metadata file may hold: ours are a few kB.
 constexpr size_t kMaxTextFileBytes = 1 << 20;
 // Our files nest 2 deep (a matrix's data in a map; the trigger report's arrays in capture.json).
@@ -392,6 +422,9 @@ Status parse_calibration(const std::string &text, const std::string &path,
 	if (max_nesting(text, true) > kMaxNesting)
 		return Status::error(EINVAL, path + ": nested more than " + std::to_string(kMaxNesting) +
 						     " levels deep; not a calibration file");
+	if (!one_yaml_document(text))
+		return Status::error(EINVAL, path + ": more than one YAML document (a '---' or '...' "
+						    "line after the first content); not a calibration file");
 	cv::FileStorage fs;
 	try {
 		// An empty text would make OpenCV take the string as a file name.
