@@ -87,12 +87,14 @@ int max_nesting(const std::string &text, bool yaml)
 	return worst;
 }
 
-// OpenCV 4.6's YAML parser loops forever on some texts of more than one document, e.g. the 29
-// bytes "%YAML:1.0\n---\n  u: m\n---\n- 1\n" (a second document's block sequence less indented
-// than the first's map; also with "..." or content before the only "---"; found by
-// tests/host/fuzz_calibration). A calibration is one document: a document marker ("---", or
-// the end marker "...") at the start of a line may come only once, before any content.
-bool one_yaml_document(const std::string &text)
+// OpenCV 4.6's YAML parser never returns on some texts whose top-level map is indented and
+// then dedented: "%YAML:1.0\n---\n u: m\n- 1\n- 1\n", "--- u: m" (content on the marker line)
+// followed by two "- 1" lines, or a second document ("---" or "...") after an indented map,
+// "%YAML:1.0\n---\n  u: m\n---\n- 1\n" (all found by tests/host/fuzz_calibration, minimised by
+// hand). A calibration.yaml as OpenCV (C++ or Python) writes it has one layout, checked before
+// the parser runs: "%" directives, one "---" line alone, then the fields, the first at column
+// 0; no second document marker. Empty if the text has that layout, else why not.
+std::string yaml_layout_problem(const std::string &text)
 {
 	bool content = false;
 	int markers = 0;
@@ -102,19 +104,26 @@ bool one_yaml_document(const std::string &text)
 			end = text.size();
 		const std::string line = text.substr(i, end - i);
 		i = end + 1;
-		std::string rest = line;
+		const size_t k = line.find_first_not_of(" \t");
+		const bool blank = k == std::string::npos || line[k] == '#';
 		if (line.compare(0, 3, "---") == 0 || line.compare(0, 3, "...") == 0) {
-			if (content || line[0] == '.' || ++markers > 1)
-				return false;
-			rest = line.substr(3);
-		} else if (!content && !line.empty() && line[0] == '%') {
-			continue; // a directive
+			if (line[0] == '.' || content || ++markers > 1)
+				return "more than one YAML document (a '---' or '...' line after the first "
+				       "content)";
+			const size_t r = line.find_first_not_of(" \t", 3);
+			if (r != std::string::npos && line[r] != '#')
+				return "content on the '---' line";
+			continue;
 		}
-		const size_t k = rest.find_first_not_of(" \t");
-		if (k != std::string::npos && rest[k] != '#')
-			content = true;
+		if (!content && !line.empty() && line[0] == '%')
+			continue; // a directive
+		if (blank || content)
+			continue;
+		if (k != 0)
+			return "the first field is indented (the top-level map must start at column 0)";
+		content = true;
 	}
-	return true;
+	return {};
 }
 
 // What a calibration or metadata file may hold: ours are a few kB.
@@ -422,9 +431,9 @@ Status parse_calibration(const std::string &text, const std::string &path,
 	if (max_nesting(text, true) > kMaxNesting)
 		return Status::error(EINVAL, path + ": nested more than " + std::to_string(kMaxNesting) +
 						     " levels deep; not a calibration file");
-	if (!one_yaml_document(text))
-		return Status::error(EINVAL, path + ": more than one YAML document (a '---' or '...' "
-						    "line after the first content); not a calibration file");
+	const std::string layout = yaml_layout_problem(text);
+	if (!layout.empty())
+		return Status::error(EINVAL, path + ": " + layout + "; not a calibration file");
 	cv::FileStorage fs;
 	try {
 		// An empty text would make OpenCV take the string as a file name.
