@@ -29,5 +29,5 @@ grep -q "seed corpus: files: $n " "$d/log" || {
 	echo "$name: did not read its $n non-empty seeds" >&2
 	exit 1
 }
-secs=$(echo "$(date +%s.%N) - $start" | bc)
+secs=$(awk -v a="$start" -v b="$(date +%s.%N)" 'BEGIN { print b - a }')
 printf '%s: ok, %d seeds + %d generated inputs, no crash, %.1f s\n' "$name" "$n" "$runs" "$secs"
