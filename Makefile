@@ -55,6 +55,8 @@ TEST_BINS := $(patsubst tests/%,$(OUT)/tests/%,$(basename $(TEST_SRC)))
 # `make` alone is the release build, whatever target an included fragment defines first.
 .DEFAULT_GOAL := all
 EXTRA_ALL :=
+# What `make test` builds besides the test programs (e.g. the fuzz targets its replays run).
+EXTRA_TEST :=
 # Firmware (arm-none-eabi images, native build) and other fragments add their own rules.
 -include $(wildcard firmware/*.mk tools/*.mk tests/*.mk)
 
@@ -105,7 +107,7 @@ $(OUT)/tests/%: $(OUT)/obj/tests/%.$$(if $$(wildcard tests/$$*.cpp),cpp,c).o $(L
 
 # ---- the two commands the README names -----------------------------------------------
 test: deps
-	@$(MAKE) --no-print-directory MODE=asan tests $(EXTRA_ALL)
+	@$(MAKE) --no-print-directory MODE=asan tests $(EXTRA_ALL) $(EXTRA_TEST)
 	@FACESCAN_BIN=$(BUILD)/asan/bin FACESCAN_BUILD=$(BUILD) ./tests/run-tests.sh $(BUILD)/asan/tests
 
 demo: deps

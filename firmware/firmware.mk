@@ -4,8 +4,9 @@
 #                                            whatever MODE is, for every board in FW_ARM_BOARDS
 #   $(OUT)/bin/facescan-fw-native            the core on the native board behind a pty
 #   $(OUT)/lib/libfacescan-fw-native.a       core + native board, linked into tests/firmware/*
-#   make fuzz                                libFuzzer on the protocol decoder and the command
-#                                            handler (FUZZ_SECONDS, default 60)
+#   $(BUILD)/fuzz/fuzz_protocol              libFuzzer on the protocol decoder and the command
+#                                            handler; `make fuzz` (tests/fuzz.mk) runs it and the
+#                                            host targets (FUZZ_SECONDS, default 60, each)
 #
 # firmware/core is deliberately not in libfacescan.a: it defines the firmware's main-loop
 # task and needs a board, which a host program must not get by accident.
@@ -92,15 +93,4 @@ $(FUZZ_DIR)/fuzz_protocol: $(FUZZ_SRC) $(wildcard firmware/*.h firmware/*/*.h fi
 # Built with the firmware so tests/firmware/test_fuzz_replay.sh keeps it compiling and sane.
 firmware: $(FUZZ_DIR)/fuzz_protocol
 
-.PHONY: fuzz
-fuzz: $(FUZZ_DIR)/fuzz_protocol
-	@mkdir -p $(FUZZ_DIR)/corpus $(FUZZ_DIR)/artifacts
-	@FS_FUZZ_SEEDS=$(FUZZ_DIR)/corpus $(FUZZ_DIR)/fuzz_protocol -runs=0 >/dev/null 2>&1
-	@echo "fuzzing the protocol decoder + command handler for $(FUZZ_SECONDS) s"
-	@$(FUZZ_DIR)/fuzz_protocol -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 \
-		-artifact_prefix=$(FUZZ_DIR)/artifacts/ $(FUZZ_DIR)/corpus \
-		>$(FUZZ_DIR)/last-run.log 2>&1; rc=$$?; \
-	grep -E '^(stat::number_of_executed_units|stat::average_exec_per_sec|Done|SUMMARY)' \
-		$(FUZZ_DIR)/last-run.log; \
-	echo "crash artifacts: $$(ls $(FUZZ_DIR)/artifacts | wc -l) (in $(FUZZ_DIR)/artifacts)"; \
-	exit $$rc
+# `make fuzz` runs it with the host targets: tests/fuzz.mk.

@@ -87,6 +87,45 @@ int max_nesting(const std::string &text, bool yaml)
 	return worst;
 }
 
+// OpenCV 4.6's YAML parser never returns on some texts whose top-level map is indented and
+// then dedented: "%YAML:1.0\n---\n u: m\n- 1\n- 1\n", "--- u: m" (content on the marker line)
+// followed by two "- 1" lines, or a second document ("---" or "...") after an indented map,
+// "%YAML:1.0\n---\n  u: m\n---\n- 1\n" (all found by tests/host/fuzz_calibration, minimised by
+// hand). A calibration.yaml as OpenCV (C++ or Python) writes it has one layout, checked before
+// the parser runs: "%" directives, one "---" line alone, then the fields, the first at column
+// 0; no second document marker. Empty if the text has that layout, else why not.
+std::string yaml_layout_problem(const std::string &text)
+{
+	bool content = false;
+	int markers = 0;
+	for (size_t i = 0; i <= text.size();) {
+		size_t end = text.find_first_of("\r\n", i);
+		if (end == std::string::npos)
+			end = text.size();
+		const std::string line = text.substr(i, end - i);
+		i = end + 1;
+		const size_t k = line.find_first_not_of(" \t");
+		const bool blank = k == std::string::npos || line[k] == '#';
+		if (line.compare(0, 3, "---") == 0 || line.compare(0, 3, "...") == 0) {
+			if (line[0] == '.' || content || ++markers > 1)
+				return "more than one YAML document (a '---' or '...' line after the first "
+				       "content)";
+			const size_t r = line.find_first_not_of(" \t", 3);
+			if (r != std::string::npos && line[r] != '#')
+				return "content on the '---' line";
+			continue;
+		}
+		if (!content && !line.empty() && line[0] == '%')
+			continue; // a directive
+		if (blank || content)
+			continue;
+		if (k != 0)
+			return "the first field is indented (the top-level map must start at column 0)";
+		content = true;
+	}
+	return {};
+}
+
 // What a calibration or metadata file may hold: ours are a few kB.
 constexpr size_t kMaxTextFileBytes = 1 << 20;
 // Our files nest 2 deep (a matrix's data in a map; the trigger report's arrays in capture.json).
@@ -96,6 +135,39 @@ constexpr int kMaxNesting = 32;
 constexpr int kMaxImageSide = 10000;
 constexpr long long kMaxImagePixels = 40LL * 1000 * 1000;
 
+// OpenCV 4.6's `node >> mat` allocates the rows x cols (or "sizes") a node declares before it
+// counts the node's data: a dozen lines declaring 1000000000 x 1000000000 asked for 8 EB
+// (std::bad_alloc; an abort under ASan; found by tests/host/fuzz_calibration), 20000 x 20000
+// for 3.2 GB. So a matrix node is checked first: only rows, cols, dt and data; at most
+// kMaxMatrixSide per side, one channel; exactly rows x cols numbers. Empty if it passes, else why.
+constexpr int kMaxMatrixSide = 16;
+
+std::string small_matrix_problem(const cv::FileNode &node)
+{
+	if (!node.isMap())
+		return "is not a matrix";
+	for (const std::string &k : node.keys())
+		if (k != "rows" && k != "cols" && k != "dt" && k != "data")
+			return "is not a matrix (unexpected key '" + k + "')";
+	const cv::FileNode rows = node["rows"], cols = node["cols"], dt = node["dt"], data = node["data"];
+	if (!rows.isInt() || !cols.isInt() || !dt.isString() || !data.isSeq())
+		return "is not a matrix (needs integer rows and cols, a dt and a data sequence)";
+	const int r = int(rows), c = int(cols);
+	if (r < 1 || r > kMaxMatrixSide || c < 1 || c > kMaxMatrixSide)
+		return "declares " + std::to_string(r) + "x" + std::to_string(c) + ", not a matrix of 1.." +
+		       std::to_string(kMaxMatrixSide) + " rows and columns";
+	const std::string type = std::string(dt);
+	if (type.size() != 1 || std::string("ucwsifd").find(type[0]) == std::string::npos)
+		return "has dt '" + type + "', not one channel of a number type (u c w s i f d)";
+	if (data.size() != size_t(r) * size_t(c))
+		return "declares " + std::to_string(r) + "x" + std::to_string(c) + " but holds " +
+		       std::to_string(data.size()) + " values";
+	for (size_t k = 0; k < data.size(); k++)
+		if (!data[int(k)].isInt() && !data[int(k)].isReal())
+			return "holds a value that is not a number";
+	return {};
+}
+
 // Reads a real matrix node of exactly rows x cols (either orientation for vectors).
 Status read_matrix(const cv::FileStorage &fs, const std::string &file, const std::string &key,
 		   int rows, int cols, cv::Mat *ret)
@@ -103,6 +175,9 @@ Status read_matrix(const cv::FileStorage &fs, const std::string &file, const std
 	cv::FileNode node = fs[key];
 	if (node.empty())
 		return Status::error(EINVAL, file + ": missing field '" + key + "'");
+	const std::string problem = small_matrix_problem(node);
+	if (!problem.empty())
+		return Status::error(EINVAL, file + ": field '" + key + "' " + problem);
 	cv::Mat m;
 	try {
 		node >> m;
@@ -201,6 +276,8 @@ Status read_size(const cv::FileStorage &fs, const std::string &file, const std::
 			v[k] = node[k].isInt() ? double(int(node[k])) : double(node[k]);
 		}
 	} else if (node.isMap()) {
+		if (!small_matrix_problem(node).empty())
+			return Status::error(EINVAL, want);
 		cv::Mat m;
 		try {
 			node >> m;
@@ -340,51 +417,84 @@ Status read_calibration(const std::string &path, Calibration *ret_calibration)
 	Status rs = read_regular_file(path, kMaxTextFileBytes, &text);
 	if (!rs.ok())
 		return rs;
+	return parse_calibration(text, path, ret_calibration);
+}
+
+Status parse_calibration(const std::string &text, const std::string &path,
+			 Calibration *ret_calibration)
+{
+	if (text.size() > kMaxTextFileBytes)
+		return Status::error(EFBIG, path + ": " + std::to_string(text.size()) +
+						    " bytes, more than the " +
+						    std::to_string(kMaxTextFileBytes) +
+						    " this file may have");
 	if (max_nesting(text, true) > kMaxNesting)
 		return Status::error(EINVAL, path + ": nested more than " + std::to_string(kMaxNesting) +
 						     " levels deep; not a calibration file");
+	const std::string layout = yaml_layout_problem(text);
+	if (!layout.empty())
+		return Status::error(EINVAL, path + ": " + layout + "; not a calibration file");
 	cv::FileStorage fs;
 	try {
 		// An empty text would make OpenCV take the string as a file name.
 		fs.open(text.empty() ? std::string("%YAML:1.0\n") : text,
 			cv::FileStorage::READ | cv::FileStorage::MEMORY | cv::FileStorage::FORMAT_YAML);
-	} catch (const cv::Exception &) {
+	} catch (const std::exception &) {
+		// Not only cv::Exception: OpenCV 4.6's YAML parser throws std::length_error for the
+		// 16 bytes "%YAML:1.\n s:1\n :" (found by tests/host/fuzz_calibration).
 		return Status::error(EINVAL, path + ": not a readable OpenCV YAML file");
 	}
 	if (!fs.isOpened())
 		return Status::error(EINVAL, path + ": not a readable OpenCV YAML file");
+	// OpenCV's FileNode accessors throw cv::Exception where a node is not of the kind they
+	// assert (fs["camera_count"] on a document whose root is a sequence, "- 1"): uncaught, that
+	// aborted whatever read the file (found by tests/host/fuzz_calibration). Refused here, and
+	// anything else OpenCV throws while the fields are read is -EINVAL too.
+	const cv::FileNode root = fs.root();
+	if (!root.empty() && !root.isMap())
+		return Status::error(EINVAL, path + ": the top level is not a map of fields");
+	auto read_fields = [&](Calibration *calib) -> Status {
+		cv::FileNode count = fs["camera_count"];
+		if (count.empty() || !count.isInt())
+			return Status::error(EINVAL, path + ": missing or non-integer field 'camera_count'");
+		int n = int(count);
+		if (n < 2 || n > 16)
+			return Status::error(EINVAL, path + ": field 'camera_count' must be 2..16, got " +
+							     std::to_string(n));
+		cv::FileNode units = fs["units"];
+		if (units.empty() || !units.isString() || std::string(units) != "mm")
+			return Status::error(EINVAL, path + ": field 'units' must be \"mm\"");
+		if (fs["id"].isString())
+			calib->id = std::string(fs["id"]);
+		for (int i = 0; i < n; i++) {
+			CameraModel cam;
+			cv::Mat m;
+			Status st = read_matrix(fs, path, cam_key(i, "K"), 3, 3, &m);
+			if (!st.ok())
+				return st;
+			cam.K = cv::Matx33d(m);
+			if (!(st = read_matrix(fs, path, cam_key(i, "dist"), 1, 5, &m)).ok())
+				return st;
+			cam.dist = cv::Vec<double, 5>(m.ptr<double>());
+			if (!(st = read_matrix(fs, path, cam_key(i, "R"), 3, 3, &m)).ok())
+				return st;
+			cam.R = cv::Matx33d(m);
+			if (!(st = read_matrix(fs, path, cam_key(i, "T"), 3, 1, &m)).ok())
+				return st;
+			cam.T = cv::Vec3d(m.ptr<double>());
+			if (!(st = read_size(fs, path, cam_key(i, "size"), &cam.size)).ok())
+				return st;
+			calib->cameras.push_back(cam);
+		}
+		return {};
+	};
 	Calibration calib;
-	cv::FileNode count = fs["camera_count"];
-	if (count.empty() || !count.isInt())
-		return Status::error(EINVAL, path + ": missing or non-integer field 'camera_count'");
-	int n = int(count);
-	if (n < 2 || n > 16)
-		return Status::error(EINVAL, path + ": field 'camera_count' must be 2..16, got " +
-						     std::to_string(n));
-	cv::FileNode units = fs["units"];
-	if (units.empty() || !units.isString() || std::string(units) != "mm")
-		return Status::error(EINVAL, path + ": field 'units' must be \"mm\"");
-	if (fs["id"].isString())
-		calib.id = std::string(fs["id"]);
-	for (int i = 0; i < n; i++) {
-		CameraModel cam;
-		cv::Mat m;
-		Status st = read_matrix(fs, path, cam_key(i, "K"), 3, 3, &m);
-		if (!st.ok())
-			return st;
-		cam.K = cv::Matx33d(m);
-		if (!(st = read_matrix(fs, path, cam_key(i, "dist"), 1, 5, &m)).ok())
-			return st;
-		cam.dist = cv::Vec<double, 5>(m.ptr<double>());
-		if (!(st = read_matrix(fs, path, cam_key(i, "R"), 3, 3, &m)).ok())
-			return st;
-		cam.R = cv::Matx33d(m);
-		if (!(st = read_matrix(fs, path, cam_key(i, "T"), 3, 1, &m)).ok())
-			return st;
-		cam.T = cv::Vec3d(m.ptr<double>());
-		if (!(st = read_size(fs, path, cam_key(i, "size"), &cam.size)).ok())
-			return st;
-		calib.cameras.push_back(cam);
+	try {
+		Status fields = read_fields(&calib);
+		if (!fields.ok())
+			return fields;
+	} catch (const std::exception &e) {
+		return Status::error(EINVAL, path + ": not a readable calibration (OpenCV: " + e.what() + ")");
 	}
 	Status st = check_calibration(path, calib);
 	if (!st.ok())
@@ -419,6 +529,49 @@ Status write_calibration(const std::string &path, const Calibration &c)
 		return Status::error(EINVAL, path + ": cannot serialise calibration: " + e.err);
 	}
 	return write_file_atomic(path, text.data(), text.size());
+}
+
+Status parse_capture_meta(const std::string &meta_text, const std::string &meta_path,
+			  size_t n, CaptureMeta *ret_meta)
+{
+	if (meta_text.size() > kMaxTextFileBytes)
+		return Status::error(EFBIG, meta_path + ": " + std::to_string(meta_text.size()) +
+						    " bytes, more than the " +
+						    std::to_string(kMaxTextFileBytes) +
+						    " this file may have");
+	CaptureMeta meta;
+	// nlohmann parses any depth but dumps (trigger_report) recursively.
+	if (max_nesting(meta_text, false) > kMaxNesting)
+		return Status::error(EINVAL, meta_path + ": nested more than " +
+						     std::to_string(kMaxNesting) + " levels deep");
+	nlohmann::json j = nlohmann::json::parse(meta_text, nullptr, false);
+	if (j.is_discarded() || !j.is_object())
+		return Status::error(EINVAL, meta_path + ": not a JSON object");
+	for (const char *key : {"scan_id", "pattern"})
+		if (!j.contains(key) || !j[key].is_string() || j[key].get<std::string>().empty())
+			return Status::error(EINVAL, meta_path + ": missing or invalid field '" +
+							     key + "'");
+	meta.scan_id = j["scan_id"].get<std::string>();
+	meta.pattern_id = j["pattern"].get<std::string>();
+	for (auto [key, out] : {std::pair{"timestamps_ns", &meta.timestamps_ns},
+				std::pair{"exposure_us", &meta.exposure_us}}) {
+		if (!j.contains(key))
+			continue;
+		const auto &a = j[key];
+		if (!a.is_array() || a.size() != n)
+			return Status::error(EINVAL, meta_path + ": field '" + key +
+							     "' must be an array of one number per camera");
+		for (const auto &v : a) {
+			if (!v.is_number())
+				return Status::error(EINVAL, meta_path + ": field '" + key +
+								     "' must hold numbers");
+			out->push_back(v.get<double>());
+		}
+	}
+	if (j.contains("trigger_report"))
+		meta.trigger_report_json = j["trigger_report"].dump();
+	*ret_meta = std::move(meta);
+	return {};
 }
 
 // Reads a PNG frame, checking the size its header declares against the calibration before
@@ -477,36 +630,9 @@ Status read_capture_set(const std::string &dir, CaptureSet *ret_set)
 	st = read_regular_file(meta_path, kMaxTextFileBytes, &meta_text);
 	if (!st.ok())
 		return st;
-	// nlohmann parses any depth but dumps (trigger_report) recursively.
-	if (max_nesting(meta_text, false) > kMaxNesting)
-		return Status::error(EINVAL, meta_path + ": nested more than " +
-						     std::to_string(kMaxNesting) + " levels deep");
-	nlohmann::json j = nlohmann::json::parse(meta_text, nullptr, false);
-	if (j.is_discarded() || !j.is_object())
-		return Status::error(EINVAL, meta_path + ": not a JSON object");
-	for (const char *key : {"scan_id", "pattern"})
-		if (!j.contains(key) || !j[key].is_string() || j[key].get<std::string>().empty())
-			return Status::error(EINVAL, meta_path + ": missing or invalid field '" +
-							     key + "'");
-	set.meta.scan_id = j["scan_id"].get<std::string>();
-	set.meta.pattern_id = j["pattern"].get<std::string>();
-	for (auto [key, out] : {std::pair{"timestamps_ns", &set.meta.timestamps_ns},
-				std::pair{"exposure_us", &set.meta.exposure_us}}) {
-		if (!j.contains(key))
-			continue;
-		const auto &a = j[key];
-		if (!a.is_array() || a.size() != n)
-			return Status::error(EINVAL, meta_path + ": field '" + key +
-							     "' must be an array of one number per camera");
-		for (const auto &v : a) {
-			if (!v.is_number())
-				return Status::error(EINVAL, meta_path + ": field '" + key +
-								     "' must hold numbers");
-			out->push_back(v.get<double>());
-		}
-	}
-	if (j.contains("trigger_report"))
-		set.meta.trigger_report_json = j["trigger_report"].dump();
+	st = parse_capture_meta(meta_text, meta_path, n, &set.meta);
+	if (!st.ok())
+		return st;
 
 	size_t textures = 0;
 	for (size_t i = 0; i < n; i++)

@@ -46,6 +46,14 @@ struct CaptureSet {
 
 /// Reads calibration.yaml. Errors name the file and the field (-ENOENT, -EINVAL).
 Status read_calibration(const std::string &path, Calibration *ret_calibration);
+/// Parses the text of a calibration.yaml (what read_calibration does once it has the bytes);
+/// `name` is the file the errors name. -EINVAL; *ret_calibration untouched on failure.
+Status parse_calibration(const std::string &text, const std::string &name,
+			 Calibration *ret_calibration);
+/// Parses the text of a capture.json for a set of `camera_count` cameras; `name` is the file
+/// the errors name. -EINVAL; *ret_meta untouched on failure.
+Status parse_capture_meta(const std::string &text, const std::string &name, size_t camera_count,
+			  CaptureMeta *ret_meta);
 /// Writes calibration.yaml atomically (temp file + rename).
 Status write_calibration(const std::string &path, const Calibration &calibration);
 

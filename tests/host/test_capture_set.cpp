@@ -396,6 +396,73 @@ static void hostile_files_refused(void **)
 	}
 }
 
+// What tests/host/fuzz_calibration found (the inputs are also its seeds,
+// tests/host/fuzz_calibration_seeds/): each aborted or hung the reader, and is now -EINVAL
+// naming the file. alarm(): a hang fails the test instead of stalling the suite.
+static void fuzzer_findings_refused(void **)
+{
+	struct Case {
+		std::string text;
+		const char *needle;
+	} cases[] = {
+		// OpenCV allocated the declared 1e9 x 1e9 doubles (8 EB) before counting the data.
+		{"%YAML:1.0\n---\ncamera_count: 2\nunits: mm\ncam0_K: !!opencv-matrix\n   rows: 1000000000\n"
+		 "   cols: 1000000000\n   dt: d\n   data: [ 1. ]\n",
+		 "declares 1000000000x1000000000"},
+		{calibration_text(kK, kT, "!!opencv-matrix\n   rows: 20000\n   cols: 20000\n   dt: d\n   data: [ 1., 2. ]"),
+		 "cam0_size"},
+		{"%YAML:1.0\n---\ncamera_count: 2\nunits: mm\ncam0_K: !!opencv-matrix\n   sizes: [ 3, 3, 1 ]\n"
+		 "   dt: d\n   data: [ 1. ]\n",
+		 "unexpected key 'sizes'"},
+		{"%YAML:1.0\n---\ncamera_count: 2\nunits: mm\ncam0_K: !!opencv-matrix\n   rows: 3\n   cols: 3\n"
+		 "   dt: \"2d\"\n   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\n",
+		 "one channel"},
+		// fs["camera_count"] on a root sequence threw cv::Exception (std::terminate).
+		{"%YAML:1.0\n---\n- 1\n", "top level"},
+		// OpenCV's parser threw std::length_error (std::terminate): an empty key at the very end.
+		{"%YAML:1.0\n---\na:\n s:1\n :", "not a readable"},
+		// OpenCV's parser never returned.
+		{"%YAML:1.0\n---\n  u: m\n---\n- 1\n", "indented"},
+		{"%YAML:1.0\n---\nu: m\n...\n- 1\n", "more than one YAML document"},
+		{"%YAML:1.0\n---\nu: m\n---\n- 1\n", "more than one YAML document"},
+		{"%YAML:1.0\n  u: m\n---\n- 1\n", "indented"},
+		{"%YAML:1.0\n---\n u: m\n- 1\n- 1\n", "indented"},
+		{"%YAML:1.0\n--- u: m\n- 1\n- 1\n", "'---' line"},
+	};
+	alarm(20);
+	for (const Case &k : cases) {
+		Calibration c;
+		Status st = read_calibration_text(k.text, &c);
+		std::printf("  -> %s\n", st.message().c_str());
+		assert_int_equal(st.code(), -EINVAL);
+		assert_non_null(std::strstr(st.message().c_str(), "calibration.yaml"));
+		assert_non_null(std::strstr(st.message().c_str(), k.needle));
+		// The same from memory (the fuzz target's entry point).
+		Status mem = parse_calibration(k.text, "mem.yaml", &c);
+		assert_int_equal(mem.code(), -EINVAL);
+		assert_non_null(std::strstr(mem.message().c_str(), k.needle));
+	}
+	alarm(0);
+	// The layout checks leave what OpenCV writes alone: a written calibration parses from memory.
+	Dir d;
+	CaptureSet set = small_set(false);
+	assert_true(write_calibration(d / "calibration.yaml", set.calibration).ok());
+	std::string text;
+	assert_true(read_regular_file(d / "calibration.yaml", 1 << 20, &text).ok());
+	Calibration back;
+	assert_true(parse_calibration(text, "mem.yaml", &back).ok());
+	assert_int_equal(back.cameras.size(), 2);
+	assert_true(back.cameras[1].size == cv::Size(160, 120));
+	CaptureMeta meta;
+	assert_true(parse_capture_meta("{\"scan_id\": \"s\", \"pattern\": \"p\", \"exposure_us\": [1, 2]}",
+				       "mem.json", 2, &meta).ok());
+	assert_int_equal(meta.exposure_us.size(), 2);
+	Status st = parse_capture_meta("{\"scan_id\": \"s\", \"pattern\": \"p\", \"exposure_us\": [1, 2]}",
+				       "mem.json", 3, &meta);
+	assert_int_equal(st.code(), -EINVAL);
+	assert_non_null(std::strstr(st.message().c_str(), "mem.json"));
+}
+
 static void writer_refuses_inconsistent_sets(void **)
 {
 	Dir d;
@@ -420,6 +487,7 @@ int main(void)
 		cmocka_unit_test(implausible_sizes_refused),
 		cmocka_unit_test(implausible_geometry_refused),
 		cmocka_unit_test(hostile_files_refused),
+		cmocka_unit_test(fuzzer_findings_refused),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
