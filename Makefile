@@ -56,7 +56,7 @@ TEST_BINS := $(patsubst tests/%,$(OUT)/tests/%,$(basename $(TEST_SRC)))
 .DEFAULT_GOAL := all
 EXTRA_ALL :=
 # Firmware (arm-none-eabi images, native build) and other fragments add their own rules.
--include $(wildcard firmware/*.mk tools/*.mk tests/*.mk)
+-include $(wildcard firmware/*.mk tools/*.mk tests/*.mk packaging/*.mk)
 
 .PHONY: all bins tests test demo bench deps clean format
 # Targets that need the packages re-enter make after deps, so pkg-config is read once they exist.
