@@ -12,7 +12,8 @@
 #   $(SYSCONFDIR)/facescan/facescand.conf      the booth settings + every other key, commented
 #   $(PREFIX)/share/facescan/web/              viewer page + the three.js files it loads
 #                                              (found from the binary: <bin>/../share/facescan/web)
-#   $(PREFIX)/share/doc/facescan/              README.md and docs/
+#   $(PREFIX)/share/doc/facescan/              README.md and docs/; examples/facescand.service.d/
+#                                              network.conf, the drop-in viewer_port and the PACS need
 # The unit, the binaries' default config path and the docs name /usr/bin and /etc: other
 # PREFIX/SYSCONFDIR values are written into the installed unit.
 # Not installed: facescan-fw-native and sgbm-baseline (development and bench tools), firmware images.
@@ -80,6 +81,8 @@ endif
 	$(foreach f,$(WEB_THREE),install -Dm644 $(WEB_SRC)/$(f) $(DESTDIR)$(PREFIX)/share/facescan/web/node_modules/three/$(f) &&) true
 	install -d $(DESTDIR)$(PREFIX)/share/doc/facescan
 	install -m644 README.md docs/*.md docs/*.png $(DESTDIR)$(PREFIX)/share/doc/facescan/
+	install -Dm644 host/facescand/facescand-network.conf \
+		$(DESTDIR)$(PREFIX)/share/doc/facescan/examples/facescand.service.d/network.conf
 
 # The package: `make install` into a staging root, then control files and dpkg-deb. Depends is
 # what dpkg-shlibdeps finds the binaries linked against (+ systemd, for sysusers/tmpfiles).
