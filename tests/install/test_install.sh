@@ -9,7 +9,8 @@
 # tmpfiles files create the user and the spool in the scratch root, and that the unit's
 # `systemd-analyze security` exposure stays at or below MAX_EXPOSURE (docs/daemon.md "Hardening").
 # Uses the release build (build/bin) when it has both binaries, else $FACESCAN_BIN (the runner's
-# ASan build). Skips (77) only without dpkg-deb or systemd-analyze.
+# ASan build), as they are (never rebuilt here). Skips (77) only without dpkg-deb or
+# systemd-analyze, or when the viewer's three.js cannot be had from npm.
 set -u
 # The exposure `systemd-analyze security --offline=yes` gives the unit (systemd 252, Debian 12),
 # alone and with the network drop-in viewer_port / the PACS need (was 1.3 before the hardening
@@ -29,6 +30,10 @@ else
 	case $from in /*) ;; *) from=$root/$from ;; esac
 fi
 echo "installing the binaries of $from"
+# The binaries are tested as built: -o keeps make from rebuilding a stale release build here.
+keep="-o $from/facescan -o $from/facescand"
+"$root/tools/install-web-deps.sh" web "$build" >/dev/null ||
+	{ echo "SKIP: the viewer's three.js could not be installed from npm (tools/install-web-deps.sh web)"; exit 77; }
 T=$(mktemp -d /tmp/facescan-install-XXXXXX)
 vpid=
 trap '[ -n "$vpid" ] && kill "$vpid" 2>/dev/null; rm -rf "$T"' EXIT
@@ -40,7 +45,7 @@ t0=$(date +%s)
 
 # ---- make install ---------------------------------------------------------------------------
 I=$T/inst
-if ! make -C "$root" --no-print-directory install DESTDIR="$I" BUILD="$build" INSTALL_FROM="$from" \
+if ! make -C "$root" --no-print-directory $keep install DESTDIR="$I" BUILD="$build" INSTALL_FROM="$from" \
 	>"$T/install.log" 2>&1; then
 	bad "make install DESTDIR=$I"; cat "$T/install.log"; exit 1
 fi
@@ -89,7 +94,7 @@ check "installed facescan --help" sh -c "'$I/usr/bin/facescan' --help | grep -q 
 check "installed facescan version" sh -c "'$I/usr/bin/facescan' version | grep -q '^facescan '"
 # make install never overwrites a site's config: a second run puts the new one beside it.
 echo "# site" >>"$I/etc/facescan/facescand.conf"
-make -C "$root" --no-print-directory install DESTDIR="$I" BUILD="$build" INSTALL_FROM="$from" >"$T/install2.log" 2>&1
+make -C "$root" --no-print-directory $keep install DESTDIR="$I" BUILD="$build" INSTALL_FROM="$from" >"$T/install2.log" 2>&1
 check "a second make install keeps the site's config (new one as .conf.new)" \
 	sh -c "tail -1 '$I/etc/facescan/facescand.conf' | grep -qx '# site' && [ -f '$I/etc/facescan/facescand.conf.new' ]"
 
@@ -160,7 +165,7 @@ systemd-analyze verify --root="$V" --man=no --recursive-errors=no facescand.serv
 check "systemd-analyze verify fails when ExecStart's binary is missing" [ $? -ne 0 ]
 
 # ---- make deb --------------------------------------------------------------------------------
-if ! make -C "$root" --no-print-directory deb BUILD="$build" INSTALL_FROM="$from" >"$T/deb.log" 2>&1; then
+if ! make -C "$root" --no-print-directory $keep deb BUILD="$build" INSTALL_FROM="$from" >"$T/deb.log" 2>&1; then
 	bad "make deb"; cat "$T/deb.log"; exit 1
 fi
 deb=$(sed -n 's/^deb: //p' "$T/deb.log")
