@@ -32,6 +32,9 @@ fi
 echo "installing the binaries of $from"
 # The binaries are tested as built: -o keeps make from rebuilding a stale release build here.
 keep="-o $from/facescan -o $from/facescand"
+# The package as shipped (xz) from the release build; gzip for the 90 MB of a sanitizer build.
+compress=xz
+[ "$from" = "$build/bin" ] || compress=gzip
 "$root/tools/install-web-deps.sh" web "$build" >/dev/null ||
 	{ echo "SKIP: the viewer's three.js could not be installed from npm (tools/install-web-deps.sh web)"; exit 77; }
 T=$(mktemp -d /tmp/facescan-install-XXXXXX)
@@ -165,10 +168,12 @@ systemd-analyze verify --root="$V" --man=no --recursive-errors=no facescand.serv
 check "systemd-analyze verify fails when ExecStart's binary is missing" [ $? -ne 0 ]
 
 # ---- make deb --------------------------------------------------------------------------------
-if ! make -C "$root" --no-print-directory $keep deb BUILD="$build" INSTALL_FROM="$from" >"$T/deb.log" 2>&1; then
+if ! make -C "$root" --no-print-directory $keep deb BUILD="$build" INSTALL_FROM="$from" DEB_COMPRESS=$compress >"$T/deb.log" 2>&1; then
 	bad "make deb"; cat "$T/deb.log"; exit 1
 fi
 deb=$(sed -n 's/^deb: //p' "$T/deb.log")
+rebuilt=$(cat "$T/install.log" "$T/install2.log" "$T/deb.log" | grep -E '^  (CC|CXX|LD|AR) ' | head -3)
+check "make install / make deb rebuilt nothing${rebuilt:+ (did: $rebuilt)}" [ -z "$rebuilt" ]
 check "make deb built $deb" [ -f "$deb" ]
 dpkg-deb -I "$deb" >"$T/info" 2>&1
 field() { sed -n "s/^ $1: //p" "$T/info"; }
