@@ -58,7 +58,7 @@ EXTRA_ALL :=
 # What `make test` builds besides the test programs (e.g. the fuzz targets its replays run).
 EXTRA_TEST :=
 # Firmware (arm-none-eabi images, native build) and other fragments add their own rules.
--include $(wildcard firmware/*.mk tools/*.mk tests/*.mk)
+-include $(wildcard firmware/*.mk tools/*.mk tests/*.mk packaging/*.mk)
 
 .PHONY: all bins tests test demo bench deps clean format
 # Targets that need the packages re-enter make after deps, so pkg-config is read once they exist.

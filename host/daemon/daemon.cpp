@@ -303,10 +303,16 @@ struct Daemon::Impl {
 			return Status::error(err, "chmod " + path + ": " + std::strerror(err));
 		}
 		if (!cfg.socket_group.empty()) {
+			// No chown when the socket has the group already (the shipped config names the
+			// daemon's own group): the unit's SystemCallFilter then denies @chown too.
 			struct group *g = getgrnam(cfg.socket_group.c_str());
-			if (!g || chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) < 0) {
+			struct stat sst;
+			if (!g || stat(path.c_str(), &sst) < 0 ||
+			    (sst.st_gid != g->gr_gid && chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) < 0)) {
+				err = g ? errno : ENOENT;
 				::close(fd);
-				return Status::error(EPERM, "cannot give " + path + " to group " + cfg.socket_group);
+				return Status::error(EPERM, "cannot give " + path + " to group " + cfg.socket_group + ": " +
+								    (g ? std::strerror(err) : "no such group"));
 			}
 		}
 		if (listen(fd, 16) < 0) {

@@ -153,15 +153,17 @@ Status find_web_dir(std::string *ret_dir)
 		candidates.emplace_back(env);
 	const std::string exe = real("/proc/self/exe");
 	const std::string exe_dir = exe.substr(0, exe.rfind('/'));
-	candidates.push_back(exe_dir + "/../web");
-	candidates.push_back(exe_dir + "/../../web");
+	candidates.push_back(exe_dir + "/../web");		   // build/bin
+	candidates.push_back(exe_dir + "/../../web");		   // build/asan/bin
+	candidates.push_back(exe_dir + "/../share/facescan/web"); // PREFIX/bin (make install)
 	for (const std::string &c : candidates)
 		if (is_file(c + "/page/view.html") && is_file(c + "/node_modules/three/build/three.module.js")) {
 			*ret_dir = real(c);
 			return {};
 		}
 	return Status::error(-ENOENT, "viewer files not found (set FACESCAN_WEB, or run "
-				      "tools/install-web-deps.sh web to fill build/web)");
+				      "tools/install-web-deps.sh web to fill build/web; "
+				      "installed: PREFIX/share/facescan/web)");
 }
 
 Status resolve_share_file(const std::string &share_dir, const std::string &rel, std::string *ret_path)

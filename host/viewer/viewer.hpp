@@ -28,7 +28,8 @@ struct Options {
 };
 
 /// Where the viewer's web files are: $FACESCAN_WEB, else <dir of exe>/../web, else
-/// <dir of exe>/../../web (build/bin and build/asan/bin both find build/web). -ENOENT otherwise.
+/// <dir of exe>/../../web (build/bin and build/asan/bin both find build/web), else
+/// <dir of exe>/../share/facescan/web (an installed PREFIX/bin, make install). -ENOENT otherwise.
 Status find_web_dir(std::string *ret_dir);
 
 /// Maps a URL path under /share/ (already percent-decoded, without the prefix) to a file of the

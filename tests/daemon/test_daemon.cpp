@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <grp.h>
 #include <mutex>
 #include <sstream>
 #include <string>
@@ -526,6 +527,42 @@ static void test_socket_path_not_a_socket(void **)
 	assert_int_equal(std::system(cmd.c_str()), 0);
 }
 
+// socket_group: the daemon's own group needs no chown (the unit's SystemCallFilter denies it);
+// the socket has that group. A group that does not exist refuses the start and says so.
+static void test_socket_group(void **)
+{
+	char t[] = "/tmp/facescand-test-XXXXXX";
+	assert_non_null(mkdtemp(t));
+	const std::string dir = t;
+	Config cfg;
+	cfg.share_dir = dir + "/share";
+	cfg.spool_dir = dir + "/spool";
+	cfg.socket_path = dir + "/sock";
+	cfg.serial_device = "fake";
+	const struct group *own = getgrgid(getegid());
+	assert_non_null(own);
+	cfg.socket_group = own->gr_name;
+	{
+		Backends b;
+		b.mcu = std::make_unique<FakeMcu>();
+		b.cameras = std::make_unique<FakeCameras>(4);
+		b.recon = std::make_unique<FakeReconstructor>();
+		Daemon d(cfg, std::move(b));
+		facescan::Status s = d.start();
+		assert_true(s.ok());
+		struct stat st;
+		assert_int_equal(stat(cfg.socket_path.c_str(), &st), 0);
+		assert_int_equal(st.st_gid, getegid());
+	}
+	cfg.socket_group = "no-such-group-facescan";
+	facescan::Status s = start_another(cfg);
+	std::printf("  %s\n", s.message().c_str());
+	assert_false(s.ok());
+	assert_non_null(std::strstr(s.message().c_str(), "no such group"));
+	std::string cmd = "rm -rf '" + dir + "'";
+	assert_int_equal(std::system(cmd.c_str()), 0);
+}
+
 // 32 idle connections locked every client out for ~29 s; a byte every 20 s held a slot forever.
 static void test_idle_and_slow_clients(void **)
 {
@@ -615,6 +652,7 @@ int main()
 		cmocka_unit_test(test_check_capture_skew),
 		cmocka_unit_test(test_second_instance_refused),
 		cmocka_unit_test(test_socket_path_not_a_socket),
+		cmocka_unit_test(test_socket_group),
 		cmocka_unit_test(test_idle_and_slow_clients),
 		cmocka_unit_test(test_unwritable_spool_refuses_before_capture),
 		cmocka_unit_test(test_button_in_clinic_mode),
