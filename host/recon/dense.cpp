@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Dense>
+
 namespace facescan::recon {
 
 namespace {
@@ -131,6 +133,7 @@ cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, d
 	cv::resize(coarse, out, left.size(), 0, 0, cv::INTER_NEAREST);
 	return out;
 }
+
 
 } // namespace
 
@@ -264,6 +267,122 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			out[x] = D.at<float>(yy, xx) / float(k);
 		}
 	}
+}
+
+int fill_flat_regions(const cv::Mat &std_l, const DenseParams &params, const cv::Mat &valid, cv::Mat *total,
+		      DenseStats *stats)
+{
+	cv::Mat flat = valid & (std_l <= float(params.flat_texture_std));
+	cv::Mat labels, region, centroids;
+	const int nl = cv::connectedComponentsWithStats(flat, labels, region, centroids, 4, CV_32S);
+	if (nl <= 1)
+		return 0;
+	using Mat6 = Eigen::Matrix<double, 6, 6>;
+	using Vec6 = Eigen::Matrix<double, 6, 1>;
+	std::vector<Mat6> ata(size_t(nl), Mat6::Zero());
+	std::vector<Vec6> atb(size_t(nl), Vec6::Zero());
+	std::vector<double> btb(size_t(nl), 0.0);
+	std::vector<int> count(size_t(nl), 0);
+	std::vector<double> scale(size_t(nl), 1.0);
+	for (int l = 1; l < nl; ++l)
+		scale[size_t(l)] = std::max(1.0, std::sqrt(double(region.at<int>(l, cv::CC_STAT_AREA))));
+	auto basis = [&](int l, double x, double y) {
+		const double s = scale[size_t(l)];
+		const double u = (x - centroids.at<double>(l, 0)) / s, v = (y - centroids.at<double>(l, 1)) / s;
+		Vec6 phi;
+		phi << 1, u, v, u * u, u * v, v * v;
+		return phi;
+	};
+	const int r = std::max(1, params.flat_ring_px);
+	// The ring's pixels, gathered once: (label, x, y, disparity).
+	struct RingPixel {
+		int label, x, y;
+		float d;
+	};
+	std::vector<RingPixel> ring;
+	std::vector<int> ring_count(size_t(nl), 0);
+	for (int y = 0; y < valid.rows; ++y) {
+		const uchar *vr = valid.ptr<uchar>(y), *fr = flat.ptr<uchar>(y);
+		const float *tr = total->ptr<float>(y);
+		for (int x = 0; x < valid.cols; ++x) {
+			if (!vr[x] || fr[x])
+				continue;
+			// The flat regions this textured match borders (a few at most: the squares it
+			// separates).
+			int seen[4] = {0, 0, 0, 0}, ns = 0;
+			for (int dy = -r; dy <= r && ns < 4; ++dy) {
+				const int yy = y + dy;
+				if (yy < 0 || yy >= valid.rows)
+					continue;
+				const int *lr = labels.ptr<int>(yy);
+				for (int dx = -r; dx <= r && ns < 4; ++dx) {
+					const int xx = x + dx;
+					if (xx < 0 || xx >= valid.cols || lr[xx] <= 0)
+						continue;
+					if (std::find(seen, seen + ns, lr[xx]) == seen + ns)
+						seen[ns++] = lr[xx];
+				}
+			}
+			for (int k = 0; k < ns; ++k) {
+				ring.push_back({seen[k], x, y, tr[x]});
+				ring_count[size_t(seen[k])]++;
+			}
+		}
+	}
+	// A robust fit: least squares, then again on the ring pixels within a shrinking gate of the
+	// previous fit (a square's edge may border a mismatch or another surface).
+	std::vector<Vec6> coef(size_t(nl), Vec6::Zero());
+	std::vector<char> fit(size_t(nl), 0);
+	const double gates[3] = {1e9, 2.0 * params.flat_max_fit_px, params.flat_max_fit_px};
+	for (double gate : gates) {
+		for (int l = 0; l < nl; ++l) {
+			ata[size_t(l)].setZero();
+			atb[size_t(l)].setZero();
+			btb[size_t(l)] = 0;
+			count[size_t(l)] = 0;
+		}
+		for (const RingPixel &q : ring) {
+			const size_t l = size_t(q.label);
+			const Vec6 phi = basis(q.label, q.x, q.y);
+			if (gate < 1e8 && (fit[l] <= 0 || std::fabs(coef[l].dot(phi) - q.d) > gate))
+				continue;
+			ata[l] += phi * phi.transpose();
+			atb[l] += phi * double(q.d);
+			btb[l] += double(q.d) * double(q.d);
+			count[l]++;
+		}
+		for (int l = 1; l < nl; ++l) {
+			const size_t i = size_t(l);
+			fit[i] = 0; // a region unfitted in the last pass has no ring pixels in this one
+			if (count[i] < params.flat_min_ring || count[i] < params.flat_min_inliers * ring_count[i])
+				continue;
+			Eigen::LDLT<Mat6> ldlt(ata[i]);
+			if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9))
+				continue;
+			coef[i] = ldlt.solve(atb[i]);
+			const double sse = btb[i] - 2 * coef[i].dot(atb[i]) + coef[i].dot(ata[i] * coef[i]);
+			const double rms = std::sqrt(std::max(0.0, sse) / count[i]);
+			fit[i] = rms <= std::min(gate, 1e3) ? 1 : 0;
+		}
+	}
+	int filled = 0;
+	for (int y = 0; y < valid.rows; ++y) {
+		const int *lr = labels.ptr<int>(y);
+		float *tr = total->ptr<float>(y);
+		for (int x = 0; x < valid.cols; ++x) {
+			const int l = lr[x];
+			if (l <= 0)
+				continue;
+			if (fit[size_t(l)] <= 0) {
+				stats->flat_kept++;
+				continue;
+			}
+			tr[x] = float(coef[size_t(l)].dot(basis(l, x, y)));
+			filled++;
+		}
+	}
+	stats->flat_filled += filled;
+	return filled;
 }
 
 cv::Mat has_value(const cv::Mat &map)
@@ -555,6 +674,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	}
 	if (params.refine_iterations > 0)
 		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
+	if (params.flat_fill)
+		fill_flat_regions(std_l, params, valid, &total, &stats);
 	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
 	// rim of the matched region are where matches go wrong: both are trimmed.
 	{

@@ -65,6 +65,15 @@ struct DenseParams {
 	/// points are about twice as far off the surface as textured ones (RMS 0.81 against 0.44 mm
 	/// on a bench scene with 18 mm squares), so where pairs overlap the textured sample leads.
 	double flat_confidence = 0.2;
+	/// Flat regions (windows whose grey standard deviation over the block is at most
+	/// `flat_texture_std`) are refilled from the textured matches on a ring of `flat_ring_px`
+	/// around them where those agree with one quadratic to `flat_max_fit_px` (fill_flat_regions).
+	bool flat_fill = true;
+	double flat_texture_std = 4;
+	int flat_ring_px = 3;
+	int flat_min_ring = 24;
+	double flat_max_fit_px = 0.5;
+	double flat_min_inliers = 0.7; // of the ring: a ring split by a step fits one side only
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -100,9 +109,24 @@ struct DenseStats {
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
+	int flat_filled = 0, flat_kept = 0; // flat-region pixels refilled / left as SGBM matched them
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
+
+/// Inside a flat square SGBM has nothing to match: its smoothness carries a disparity in from the
+/// square's edges along its few path directions, and the interior ends up tilted or offset (bench
+/// booth 111: flat points RMS 0.81 mm, textured 0.44). Each flat region (4-connected `valid` pixels
+/// whose `std_l`, the grey standard deviation over the block, is at most `flat_texture_std`) gets
+/// instead the quadratic d = f(x, y) fitted to the textured matches within `flat_ring_px` of it
+/// (the square's own edges) — least squares, then twice again on the ring pixels within 2× and 1×
+/// `flat_max_fit_px` of the last fit — when at least `flat_min_ring` pixels and `flat_min_inliers` of its
+/// ring survive with an RMS of at most `flat_max_fit_px`. Other regions (a ring that fits no quadratic:
+/// a large unpatterned patch, a mismatch at the edge) keep SGBM's values. `total` is the
+/// disparity (CV_32F), `valid` the matched mask (CV_8U). Returns the pixels refilled; counts them
+/// and the kept ones in `stats`.
+int fill_flat_regions(const cv::Mat &std_l, const DenseParams &params, const cv::Mat &valid, cv::Mat *total,
+		      DenseStats *stats);
 
 /// What dense_pair saw, for `recon --debug`: the rectified left view, the right view warped by the
 /// prior (where the prior is right, the two line up), the prior and the final disparity (CV_32F,

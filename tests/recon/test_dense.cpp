@@ -252,6 +252,61 @@ void fusion_makes_one_sheet(void **)
 
 } // namespace
 
+// Flat squares: their interiors (no texture) carry a wrong disparity, as SGBM's smoothness leaves
+// it; the textured edges around them are right. The refill gives each interior the quadratic its
+// ring agrees on; a square whose ring straddles a step (two surfaces) keeps its values.
+static void flat_squares_refilled_from_their_edges(void **)
+{
+	const cv::Size size(240, 200);
+	auto truth = [](int x, int y) { return 40.0 + 0.05 * x - 0.03 * y + 2e-4 * (x - 120) * (x - 120) + 1e-4 * x * y; };
+	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F, cv::Scalar(12)), total(size, CV_32F);
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x)
+			total.at<float>(y, x) = float(truth(x, y));
+	// 24-px cells: a 16-px flat interior inside an 8-px textured band; interiors off by a tilt.
+	int squares = 0;
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x)
+			if (x % 24 >= 4 && x % 24 < 20 && y % 24 >= 4 && y % 24 < 20) {
+				std_l.at<float>(y, x) = 1;
+				total.at<float>(y, x) += float(1.5 + 0.05 * (x % 24));
+				squares += x % 24 == 4 && y % 24 == 4;
+			}
+	// A few mismatched edge pixels (the robust fit must shrug them off)...
+	for (int k = 0; k < 40; ++k)
+		total.at<float>(2 + 24 * (k % 8), 3 + 24 * (k / 8)) += 6.f;
+	// ...and one square (cell (5, 4)) whose ring straddles a step of 4 px: no single quadratic.
+	const cv::Rect stepped(5 * 24, 4 * 24, 24, 24);
+	for (int y = stepped.y; y < stepped.y + 24; ++y)
+		for (int x = stepped.x + 12; x < stepped.x + 24; ++x)
+			total.at<float>(y, x) += 4.f;
+	const cv::Mat before = total.clone();
+	DenseParams params;
+	DenseStats stats;
+	const int filled = fill_flat_regions(std_l, params, valid, &total, &stats);
+	std::printf("flat refill: %d squares, %d px refilled, %d kept\n", squares, filled, stats.flat_kept);
+	assert_int_equal(filled, stats.flat_filled);
+	assert_int_equal(stats.flat_kept, 16 * 16);
+	assert_int_equal(filled + stats.flat_kept, cv::countNonZero(std_l <= 4));
+	double worst = 0;
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x) {
+			if (std_l.at<float>(y, x) > 4)
+				assert_true(total.at<float>(y, x) == before.at<float>(y, x)); // edges untouched
+			else if (stepped.contains(cv::Point(x, y)))
+				assert_true(total.at<float>(y, x) == before.at<float>(y, x));
+			else
+				worst = std::max(worst, std::fabs(total.at<float>(y, x) - truth(x, y)));
+		}
+	std::printf("flat refill: worst interior off the truth %.4f px (was 1.5-2.3)\n", worst);
+	assert_true(worst < 0.01);
+	// Switched off, or with no flat pixel, nothing changes.
+	cv::Mat untouched = before.clone();
+	DenseStats none;
+	assert_int_equal(fill_flat_regions(cv::Mat(size, CV_32F, cv::Scalar(12)), params, valid, &untouched, &none), 0);
+	assert_true(cv::countNonZero(untouched != before) == 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -260,6 +315,7 @@ int main(void)
 		cmocka_unit_test(dense_points_lie_on_the_sphere),
 		cmocka_unit_test(coarse_search_works_without_code),
 		cmocka_unit_test(dense_refuses_bad_input),
+		cmocka_unit_test(flat_squares_refilled_from_their_edges),
 		cmocka_unit_test(fusion_makes_one_sheet),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
