@@ -28,10 +28,29 @@ WARN := -Wall -Wextra -Werror
 # System headers (OpenCV, Eigen, libcamera) go in with -isystem so that -Werror judges our code only.
 PKGS := opencv4 eigen3 libcamera libgpiod cmocka
 PKG_CFLAGS := $(patsubst -I%,-isystem %,$(shell pkg-config --cflags $(PKGS) 2>/dev/null))
-INCLUDES := -Ifirmware -Idrivers/include -Ihost -Itools -Itests
+# Include roots per layer (tools/layers.txt): a directory compiles with only the roots of the
+# layers it may include, so most upward includes fail to compile. The roots are coarser than the
+# map (-Ihost is every host library and the daemon), so tests/build/test_layers.sh, which
+# checks the map itself, stays the authority.
+INC_FIRMWARE := -Ifirmware
+INC_HOST     := -Ihost
+INC_DRIVERS  := -Ifirmware -Idrivers/include -Ihost
+INC_APPS     := -Ifirmware -Idrivers/include -Ihost -Itools
+INCLUDES     := $(INC_APPS) -Itests
+# The roots of source $(1): the longest matching directory wins, as in the map.
+# host/preview also gets -Itools for the one listed exception (it renders with tools/sim's tracer).
+includes_for = $(strip \
+	$(if $(filter tests/%,$(1)),$(INCLUDES), \
+	$(if $(filter tools/% host/facescand/%,$(1)),$(INC_APPS), \
+	$(if $(filter host/daemon/%,$(1)),$(INC_DRIVERS), \
+	$(if $(filter host/preview/%,$(1)),$(INC_HOST) -Itools, \
+	$(if $(filter host/%,$(1)),$(INC_HOST), \
+	$(if $(filter drivers/%,$(1)),$(INC_DRIVERS), \
+	$(if $(filter firmware/%,$(1)),$(INC_FIRMWARE), \
+	$(INCLUDES)))))))))
 DEPFLAGS = -MMD -MP
-CFLAGS   := -std=gnu11 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
-CXXFLAGS := -std=gnu++17 $(WARN) $(OPTFLAGS) $(INCLUDES) $(PKG_CFLAGS)
+CFLAGS   := -std=gnu11 $(WARN) $(OPTFLAGS) $(PKG_CFLAGS)
+CXXFLAGS := -std=gnu++17 $(WARN) $(OPTFLAGS) $(PKG_CFLAGS)
 OPENCV_LIBS := -lopencv_calib3d -lopencv_features2d -lopencv_flann -lopencv_aruco \
 	-lopencv_imgcodecs -lopencv_imgproc -lopencv_core
 LDLIBS := $(OPENCV_LIBS) -ldraco -lassimp -ldcmnet -ldcmdata -loflog -lofstd -lcpp-httplib -lcrypto -lembree3 -lcamera -lcamera-base -lgpiod -lsystemd -lpthread -lm
@@ -75,11 +94,11 @@ Q := $(if $(V),,@)
 $(OUT)/obj/%.c.o: %.c
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  CC    $<")
-	$(Q)$(CC) $(CFLAGS) $(DEPFLAGS) -c $< -o $@
+	$(Q)$(CC) $(CFLAGS) $(call includes_for,$<) $(DEPFLAGS) -c $< -o $@
 $(OUT)/obj/%.cpp.o: %.cpp
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  CXX   $<")
-	$(Q)$(CXX) $(CXXFLAGS) $(DEPFLAGS) -c $< -o $@
+	$(Q)$(CXX) $(CXXFLAGS) $(call includes_for,$<) $(DEPFLAGS) -c $< -o $@
 
 $(LIB): $(LIB_OBJ)
 	@mkdir -p $(dir $@)

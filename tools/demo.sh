@@ -71,7 +71,7 @@ else
 fi
 
 # ---- 2. the cameras: facescand renders through the camera driver's simulated backend ------------
-# (tools/sim behind drivers/camera's camera_sim.h), or uses its fake cameras when that is missing.
+# (tools/sim's sim/booth_camera.h, which facescand injects), or uses its fake cameras when that is missing.
 
 # ---- 3. a PACS: a local Orthanc on loopback, its storage under out/ ----------------------------
 pacs_conf=""

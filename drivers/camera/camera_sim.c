@@ -1,6 +1,7 @@
 /* Simulated camera backend: every armed trigger "fires" at once and each camera's frame is
  * drawn by the injected render callback (fscan_camera_params.render) — the booth simulator
- * through fscan_sim_booth_render(), or any test double. */
+ * through tools/sim's fscan_sim_booth_render() (sim/booth_camera.h), or any test
+ * double. The backend includes nothing of the simulator. */
 #include "camera_internal.h"
 
 #include <errno.h>

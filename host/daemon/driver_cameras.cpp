@@ -2,7 +2,6 @@
 
 #include "capture/capture_set.hpp"
 #include "facescan/camera.h"
-#include "facescan/camera_sim.h"
 
 #include <opencv2/imgproc.hpp>
 
@@ -20,11 +19,11 @@ DriverCameras::DriverCameras(std::string backend, std::string source, int count,
 DriverCameras::~DriverCameras()
 {
 	fscan_camera_destroy(cam_);
-	fscan_sim_booth_destroy(booth_);
 }
 
-void DriverCameras::use_simulator(std::string scene, double scale, std::string work_dir)
+void DriverCameras::use_simulator(BoothFactory make_booth, std::string scene, double scale, std::string work_dir)
 {
+	make_booth_ = std::move(make_booth);
 	sim_scene_ = std::move(scene);
 	sim_scale_ = scale;
 	work_dir_ = std::move(work_dir);
@@ -65,23 +64,18 @@ Status DriverCameras::open()
 	} else if (backend_ == "replay") {
 		ops = &fscan_camera_replay_ops;
 		p.source = source_.c_str();
-	} else if (backend_ == "simulated" && !sim_scene_.empty()) {
+	} else if (backend_ == "simulated" && make_booth_ && !sim_scene_.empty()) {
 		ops = &fscan_camera_sim_ops;
 		if (!booth_) {
-			fscan_sim_booth_params bp{};
-			bp.scene = sim_scene_.c_str();
-			bp.seed = 1;
-			bp.scale = sim_scale_;
-			int rc = fscan_sim_booth_create(&bp, &booth_);
-			if (rc < 0) {
-				std::string why = booth_ ? fscan_sim_booth_error(booth_) : std::strerror(-rc);
-				booth_ = nullptr;
-				return Status::error(-rc, "booth simulator: " + why);
+			Status s = make_booth_(sim_scene_, sim_scale_, &booth_);
+			if (!s.ok()) {
+				booth_.reset();
+				return Status::error(s.code(), "booth simulator: " + s.message());
 			}
 		}
-		int rc = fscan_sim_booth_camera_params(booth_, &p);
-		if (rc < 0)
-			return Status::error(-rc, "booth simulator: " + std::string(fscan_sim_booth_error(booth_)));
+		Status s = booth_->camera_params(&p);
+		if (!s.ok())
+			return Status::error(s.code(), "booth simulator: " + s.message());
 		calibration_id_ = "simulated rig, scene " + sim_scene_;
 	} else if (backend_ == "simulated") {
 		if (!render_)
@@ -187,9 +181,9 @@ Status DriverCameras::collect(const TriggerReport &report, int timeout_ms, Captu
 		// The scan as a capture set (calibration, frames, ground truth) for the reconstruction.
 		const std::string dir = work_dir_ + "/simulated-capture";
 		::mkdir(work_dir_.c_str(), 0750);
-		int rc = fscan_sim_booth_write_last(booth_, dir.c_str());
-		if (rc < 0)
-			return Status::error(-rc, "booth simulator: " + std::string(fscan_sim_booth_error(booth_)));
+		Status s = booth_->write_last(dir);
+		if (!s.ok())
+			return Status::error(s.code(), "booth simulator: " + s.message());
 		c.source_dir = dir;
 		c.meta["scene"] = sim_scene_;
 	}

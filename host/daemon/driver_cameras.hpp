@@ -4,15 +4,33 @@
 #include "daemon/backends.hpp"
 
 #include <functional>
+#include <memory>
 
 struct fscan_camera;
 struct fscan_camera_ops;
-struct fscan_sim_booth;
+struct fscan_camera_params;
 
 namespace facescan::daemon {
 
 /// Renders camera `camera`'s frame of trigger `index` (0 pattern, 1 texture) as 8-bit BGR.
 using RenderFn = std::function<Status(int camera, int index, cv::Mat *ret_bgr)>;
+
+/// The booth simulator behind camera_backend "simulated". The program that opens the cameras
+/// makes it (facescand: host/facescand/sim_booth.hpp, over tools/sim); the daemon does not
+/// include the simulator (docs/architecture.md, "Layers").
+class SimulatedBooth {
+public:
+	virtual ~SimulatedBooth() = default;
+	/// Count, sensor size, render callback and its context for fscan_camera_sim_ops. The
+	/// booth outlives the camera opened with them.
+	virtual Status camera_params(fscan_camera_params *ret_params) = 0;
+	/// Writes the last rendered scan as a capture set with ground truth into dir.
+	virtual Status write_last(const std::string &dir) = 0;
+};
+
+/// Makes the booth rendering `scene` at camera resolution `scale` (0 = the rig's).
+using BoothFactory =
+	std::function<Status(const std::string &scene, double scale, std::unique_ptr<SimulatedBooth> *ret_booth)>;
 
 class DriverCameras : public Cameras {
 public:
@@ -21,10 +39,10 @@ public:
 	DriverCameras(std::string backend, std::string source, int count, int exposure_us, int max_skew_us);
 	~DriverCameras() override;
 	void set_renderer(RenderFn render, int width, int height, std::string calibration_id);
-	/// "simulated" through the booth simulator (drivers/camera's camera_sim.h): each scan
-	/// renders `scene`; the rendered set (with ground truth) is written under work_dir for the
+	/// "simulated" through the booth `make_booth` makes at the first open(): each scan renders
+	/// `scene`; the rendered set (with ground truth) is written under work_dir for the
 	/// reconstruction.
-	void use_simulator(std::string scene, double scale, std::string work_dir);
+	void use_simulator(BoothFactory make_booth, std::string scene, double scale, std::string work_dir);
 	bool prepare_at_arm() const override
 	{
 		return backend_ != "simulated"; // the simulator renders at arm: seconds, in the worker
@@ -50,7 +68,8 @@ private:
 	int width_ = 0, height_ = 0;
 	std::string calibration_id_;
 	fscan_camera *cam_ = nullptr;
-	fscan_sim_booth *booth_ = nullptr;
+	BoothFactory make_booth_;
+	std::unique_ptr<SimulatedBooth> booth_; // outlives cam_ (~DriverCameras destroys cam_ first)
 	std::string sim_scene_, work_dir_;
 	double sim_scale_ = 0;
 	uint32_t shots_ = 2;

@@ -11,7 +11,7 @@
 
 namespace facescan::daemon {
 
-Status make_backends(const Config &config, Backends *ret_backends)
+Status make_backends(const Config &config, const BoothFactory &make_booth, Backends *ret_backends)
 {
 	Backends b;
 	if (config.serial_device == "fake")
@@ -30,7 +30,7 @@ Status make_backends(const Config &config, Backends *ret_backends)
 		auto cams = std::make_unique<DriverCameras>(config.camera_backend, config.replay_dir, config.camera_count,
 							    config.exposure_us, config.max_frame_skew_us);
 		if (config.camera_backend == "simulated") {
-			Status s = attach_simulator(config, cams.get());
+			Status s = attach_simulator(config, make_booth, cams.get());
 			if (!s.ok())
 				return s;
 		}

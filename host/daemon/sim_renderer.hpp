@@ -1,5 +1,6 @@
 // The simulated booth behind the simulated camera backend: renders the scene once per trigger
-// pair through tools/sim and hands each camera its frame.
+// pair through the booth the program injects (facescand: tools/sim) and hands each camera its
+// frame.
 #pragma once
 
 #include "daemon/config.hpp"
@@ -7,8 +8,8 @@
 
 namespace facescan::daemon {
 
-/// Gives `cameras` a renderer drawing config.sim_scene. -ENOTSUP when this build has no
-/// simulator renderer.
-Status attach_simulator(const Config &config, DriverCameras *cameras);
+/// Gives `cameras` the booth `make_booth` makes, drawing config.sim_scene. Without one (an
+/// empty factory) opening the cameras fails with -ENOTSUP.
+Status attach_simulator(const Config &config, const BoothFactory &make_booth, DriverCameras *cameras);
 
 } // namespace facescan::daemon

@@ -4,6 +4,7 @@
 #include "daemon/daemon.hpp"
 #include "daemon/log.hpp"
 #include "daemon/make_backends.hpp"
+#include "facescand/sim_booth.hpp"
 
 #include <csignal>
 #include <cstdio>
@@ -101,7 +102,7 @@ int main(int argc, char **argv)
 		return 0;
 	}
 	Backends backends;
-	facescan::Status s = make_backends(config, &backends);
+	facescan::Status s = make_backends(config, facescan::facescand::make_sim_booth, &backends);
 	if (!s.ok()) {
 		log(LOG_ERR, "refusing to start: %s", s.message().c_str());
 		return 1;

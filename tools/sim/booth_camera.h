@@ -1,4 +1,4 @@
-/* The booth simulator (tools/sim) as a render callback for the simulated camera backend
+/* The booth simulator (tools/sim) as the render callback of the simulated camera backend
  * (fscan_camera_sim_ops): each arm renders one simulated scan — pattern frames for trigger 0,
  * texture frames for trigger 1 — of the procedural head in the simulated booth.
  *
@@ -9,9 +9,11 @@
  *   fscan_camera_create(&fscan_camera_sim_ops, &p, &cam);   // booth outlives cam
  *
  * 0 or -errno; fscan_sim_booth_error() keeps the simulator's message for the caller to log.
+ * It lives with the simulator, not in drivers/: the driver only takes the callback, so no
+ * driver includes the simulator (docs/architecture.md, "Layers").
  */
-#ifndef FACESCAN_CAMERA_SIM_H
-#define FACESCAN_CAMERA_SIM_H
+#ifndef FACESCAN_SIM_BOOTH_CAMERA_H
+#define FACESCAN_SIM_BOOTH_CAMERA_H
 
 #include "facescan/camera.h"
 

@@ -1,6 +1,6 @@
-// The booth simulator behind the simulated camera backend's render callback (camera_sim.h).
-// Kept apart from camera_sim.c so the backend itself needs no simulator.
-#include "facescan/camera_sim.h"
+// The booth simulator as the simulated camera backend's render callback (booth_camera.h).
+// Here, not in drivers/camera: the driver takes the callback and knows no simulator (layers).
+#include "sim/booth_camera.h"
 
 #include "capture/capture_set.hpp"
 #include "pattern/pattern.hpp"

@@ -13,7 +13,7 @@
 
 #include "capture/capture_set.hpp"
 #include "facescan/camera.h"
-#include "facescan/camera_sim.h"
+#include "sim/booth_camera.h"
 
 // cmocka last: its fail() macro would clash with the C++ library's.
 extern "C" {
