@@ -19,7 +19,7 @@
 FUZZ_CXX := clang++
 FUZZ_SAN := -fsanitize=address,undefined -fno-sanitize-recover=undefined
 FUZZ_CXXFLAGS := -std=gnu++17 -g -O1 -fno-omit-frame-pointer $(FUZZ_SAN) $(WARN) \
-	-Ihost $(PKG_CFLAGS)
+	-Ihost -Itests $(PKG_CFLAGS)
 FUZZ_OBJ := $(FUZZ_DIR)/obj
 
 # Per target: the sources beside the harness, the libraries, and -max_len (bytes).

@@ -20,13 +20,7 @@
 #include <cstdlib>
 #include <string>
 
-#define CHECK(cond)                                                                                \
-	do {                                                                                       \
-		if (!(cond)) {                                                                     \
-			std::fprintf(stderr, "invariant failed: %s (%s:%d)\n", #cond, __FILE__, __LINE__); \
-			std::abort();                                                              \
-		}                                                                                  \
-	} while (0)
+#include "fuzz_check.hpp"
 
 using namespace facescan;
 using namespace facescan::daemon;
