@@ -504,17 +504,26 @@ static void test_second_instance_refused(void **)
 	assert_string_equal(last["state"].get<std::string>().c_str(), "delivered");
 }
 
-// socket_path naming a regular file: refused, the file kept (it was deleted and replaced).
-static void test_socket_path_not_a_socket(void **)
+// A config in a fresh scratch directory (returned in *ret_dir; the test removes it): share and
+// spool inside it, the socket at `socket_name`, the fake MCU.
+static Config scratch_config(const std::string &socket_name, std::string *ret_dir)
 {
 	char t[] = "/tmp/facescand-test-XXXXXX";
 	assert_non_null(mkdtemp(t));
-	const std::string dir = t;
+	*ret_dir = t;
 	Config cfg;
-	cfg.share_dir = dir + "/share";
-	cfg.spool_dir = dir + "/spool";
-	cfg.socket_path = dir + "/important.txt";
+	cfg.share_dir = *ret_dir + "/share";
+	cfg.spool_dir = *ret_dir + "/spool";
+	cfg.socket_path = *ret_dir + "/" + socket_name;
 	cfg.serial_device = "fake";
+	return cfg;
+}
+
+// socket_path naming a regular file: refused, the file kept (it was deleted and replaced).
+static void test_socket_path_not_a_socket(void **)
+{
+	std::string dir;
+	Config cfg = scratch_config("important.txt", &dir);
 	{
 		std::ofstream(cfg.socket_path) << "keep me\n";
 	}
@@ -531,14 +540,8 @@ static void test_socket_path_not_a_socket(void **)
 // the socket has that group. A group that does not exist refuses the start and says so.
 static void test_socket_group(void **)
 {
-	char t[] = "/tmp/facescand-test-XXXXXX";
-	assert_non_null(mkdtemp(t));
-	const std::string dir = t;
-	Config cfg;
-	cfg.share_dir = dir + "/share";
-	cfg.spool_dir = dir + "/spool";
-	cfg.socket_path = dir + "/sock";
-	cfg.serial_device = "fake";
+	std::string dir;
+	Config cfg = scratch_config("sock", &dir);
 	const struct group *own = getgrgid(getegid());
 	assert_non_null(own);
 	cfg.socket_group = own->gr_name;
