@@ -74,6 +74,10 @@ struct DenseParams {
 	int flat_min_ring = 24;
 	double flat_max_fit_px = 0.5;
 	double flat_min_inliers = 0.7; // of the ring: a ring split by a step fits one side only
+	/// A flat region darker than its ring (a gap, a shadow, the band between two projectors'
+	/// zones: no lit square) keeps its pixels only within this many pixels of a textured match;
+	/// farther, nothing in the pattern supports SGBM's guess and they are dropped. 0: kept.
+	double flat_dark_reach_px = 5;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -110,6 +114,7 @@ struct DenseStats {
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
 	int flat_filled = 0, flat_kept = 0; // flat-region pixels refilled / left as SGBM matched them
+	int flat_dropped = 0;		    // ... dropped: dark and out of the texture's reach
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
@@ -122,11 +127,14 @@ struct DenseStats {
 /// (the square's own edges) — least squares, then twice again on the ring pixels within 2× and 1×
 /// `flat_max_fit_px` of the last fit — when at least `flat_min_ring` pixels and `flat_min_inliers` of its
 /// ring survive with an RMS of at most `flat_max_fit_px`. Other regions (a ring that fits no quadratic:
-/// a large unpatterned patch, a mismatch at the edge) keep SGBM's values. `total` is the
-/// disparity (CV_32F), `valid` the matched mask (CV_8U). Returns the pixels refilled; counts them
-/// and the kept ones in `stats`.
-int fill_flat_regions(const cv::Mat &std_l, const DenseParams &params, const cv::Mat &valid, cv::Mat *total,
-		      DenseStats *stats);
+/// a large unpatterned patch, a mismatch at the edge) keep SGBM's values — except that a region
+/// darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between projector
+/// zones) loses its pixels farther than `flat_dark_reach_px` from any textured match (cleared in
+/// `valid`). `total` is the disparity (CV_32F), `valid` the matched mask (CV_8U), `grey_l` the
+/// left view (CV_8U). Returns the pixels refilled; counts them, the kept and the dropped ones in
+/// `stats`.
+int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
+		      cv::Mat *total, DenseStats *stats);
 
 /// What dense_pair saw, for `recon --debug`: the rectified left view, the right view warped by the
 /// prior (where the prior is right, the two line up), the prior and the final disparity (CV_32F,

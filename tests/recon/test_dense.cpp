@@ -281,13 +281,19 @@ static void flat_squares_refilled_from_their_edges(void **)
 		for (int x = stepped.x + 12; x < stepped.x + 24; ++x)
 			total.at<float>(y, x) += 4.f;
 	const cv::Mat before = total.clone();
+	// Lit squares: brighter than the edges around them.
+	cv::Mat grey(size, CV_8U, cv::Scalar(120));
+	grey.setTo(200, std_l <= 4);
 	DenseParams params;
 	DenseStats stats;
-	const int filled = fill_flat_regions(std_l, params, valid, &total, &stats);
+	cv::Mat valid_out = valid.clone();
+	const int filled = fill_flat_regions(grey, std_l, params, &valid_out, &total, &stats);
 	std::printf("flat refill: %d squares, %d px refilled, %d kept\n", squares, filled, stats.flat_kept);
 	assert_int_equal(filled, stats.flat_filled);
 	assert_int_equal(stats.flat_kept, 16 * 16);
 	assert_int_equal(filled + stats.flat_kept, cv::countNonZero(std_l <= 4));
+	assert_int_equal(stats.flat_dropped, 0);
+	assert_int_equal(cv::countNonZero(valid_out != valid), 0); // lit squares are never dropped
 	double worst = 0;
 	for (int y = 0; y < size.height; ++y)
 		for (int x = 0; x < size.width; ++x) {
@@ -303,8 +309,55 @@ static void flat_squares_refilled_from_their_edges(void **)
 	// Switched off, or with no flat pixel, nothing changes.
 	cv::Mat untouched = before.clone();
 	DenseStats none;
-	assert_int_equal(fill_flat_regions(cv::Mat(size, CV_32F, cv::Scalar(12)), params, valid, &untouched, &none), 0);
+	cv::Mat valid_none = valid.clone();
+	assert_int_equal(fill_flat_regions(grey, cv::Mat(size, CV_32F, cv::Scalar(12)), params, &valid_none, &untouched, &none), 0);
 	assert_true(cv::countNonZero(untouched != before) == 0);
+	assert_int_equal(cv::countNonZero(valid_none != valid), 0);
+}
+
+// A wide flat region darker than its edges (a shadow, the band between two projectors' zones) is
+// not a lit square: SGBM's guess holds only near the texture, so its pixels farther than
+// `flat_dark_reach_px` from a textured match go; the same region lit (a big square) stays whole.
+static void dark_flat_regions_dropped_beyond_reach(void **)
+{
+	const cv::Size size(160, 120);
+	const cv::Rect band(40, 20, 60, 80); // 60 x 80 px without texture
+	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F, cv::Scalar(12));
+	cv::Mat total(size, CV_32F, cv::Scalar(30));
+	std_l(band).setTo(1);
+	DenseParams params;
+	for (const int lit : {0, 1}) {
+		cv::Mat grey(size, CV_8U, cv::Scalar(120)), v = valid.clone(), t = total.clone();
+		grey(band).setTo(lit ? 220 : 25);
+		DenseStats stats;
+		fill_flat_regions(grey, std_l, params, &v, &t, &stats);
+		std::printf("flat %s region: %d px dropped of %d\n", lit ? "lit" : "dark", stats.flat_dropped, band.area());
+		if (lit) {
+			assert_int_equal(stats.flat_dropped, 0);
+			assert_int_equal(cv::countNonZero(v), size.area());
+			continue;
+		}
+		// Inside the band, a pixel stays exactly when it is within reach of the band's edge.
+		int wrong = 0;
+		for (int y = band.y; y < band.y + band.height; ++y)
+			for (int x = band.x; x < band.x + band.width; ++x) {
+				const int d = std::min({x - band.x + 1, band.x + band.width - x, y - band.y + 1,
+							band.y + band.height - y});
+				const bool kept = v.at<uchar>(y, x) != 0;
+				wrong += (d <= params.flat_dark_reach_px) != kept && std::abs(d - params.flat_dark_reach_px) > 1;
+			}
+		assert_int_equal(wrong, 0);
+		assert_true(stats.flat_dropped > (band.width - 12) * (band.height - 12));
+		assert_int_equal(cv::countNonZero(v), size.area() - stats.flat_dropped);
+		// Switched off: kept.
+		DenseParams off = params;
+		off.flat_dark_reach_px = 0;
+		cv::Mat v2 = valid.clone(), t2 = total.clone();
+		DenseStats s2;
+		fill_flat_regions(grey, std_l, off, &v2, &t2, &s2);
+		assert_int_equal(s2.flat_dropped, 0);
+		assert_int_equal(cv::countNonZero(v2), size.area());
+	}
 }
 
 int main(void)
@@ -316,6 +369,7 @@ int main(void)
 		cmocka_unit_test(coarse_search_works_without_code),
 		cmocka_unit_test(dense_refuses_bad_input),
 		cmocka_unit_test(flat_squares_refilled_from_their_edges),
+		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(fusion_makes_one_sheet),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
