@@ -82,7 +82,8 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 	Status s = check_input(set, params);
 	if (!s.ok())
 		return s;
-	const std::vector<CameraModel> &cams = set.calibration.cameras;
+	// The calibration as written; stage 6a may refine its extrinsics on this scan's own matches.
+	std::vector<CameraModel> cams = set.calibration.cameras;
 	const size_t n = cams.size();
 
 	// Stages 1-3 and 5, one camera per task.
@@ -172,6 +173,12 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 	report.corner_multiplier = coded_centroids ? double(coded) / coded_centroids : 0;
 	report.points_per_square = centroids ? double(all) / centroids : 0;
 	timer.lap("match");
+
+	// Stage 6a.
+	s = refine_extrinsics(matches, params.bundle, &cams, &report.bundle);
+	if (!s.ok())
+		return s;
+	timer.lap("bundle");
 
 	// Stage 6.
 	std::vector<PartialModel> models(n - 1);
@@ -327,6 +334,16 @@ std::string report_json(const ReconReport &r)
 				   {"points", p.dense.points},
 				   {"median_seed_spacing_px", p.dense.median_spacing_px}}}});
 	j["pairs"] = pairs;
+	{
+		const BundleStats &b = r.bundle;
+		json moved = json::array();
+		for (const BundleCamera &c : b.cameras)
+			moved.push_back({{"camera", c.camera}, {"rotation_mrad", c.rotation_mrad}, {"centre_mm", c.centre_mm}});
+		j["bundle"] = {{"applied", b.applied},	       {"tracks", b.tracks},
+			       {"tracks_3_views", b.tracks_3_views}, {"observations", b.observations},
+			       {"rms_before_px", b.rms_before_px}, {"rms_after_px", b.rms_after_px},
+			       {"cameras", moved}};
+	}
 	json reg = json::array();
 	for (const RegistrationPair &p : r.registration)
 		reg.push_back({{"model", p.model}, {"onto", p.onto}, {"shared", p.shared}, {"inliers", p.inliers},

@@ -12,6 +12,7 @@
 #include "capture/capture_set.hpp"
 #include "common/status.hpp"
 #include "pattern/pattern.hpp"
+#include "recon/bundle.hpp"
 #include "recon/debug.hpp"
 #include "recon/dense.hpp"
 #include "recon/fusion.hpp"
@@ -31,6 +32,7 @@ namespace facescan::recon {
 struct ReconParams {
 	DetectParams detect;
 	MatchParams match;
+	BundleParams bundle;
 	TriangulateParams triangulate;
 	MeshingParams meshing;
 	RegistrationParams registration;
@@ -76,6 +78,7 @@ struct ReconReport {
 	std::vector<StageTime> stages; // in order; "total" last
 	std::vector<CameraReport> cameras;
 	std::vector<PairReport> pairs;
+	BundleStats bundle; // stage 6a: the extrinsics refined on the scan's matches
 	std::vector<RegistrationPair> registration;
 	FusionStats fusion;   // the sparse mesh
 	SurfaceStats surface; // the dense one (when dense matching ran)

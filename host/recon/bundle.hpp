@@ -1,0 +1,63 @@
+// Stage 6a: the calibration's extrinsics refined on the code's own correspondences.
+//
+// A good calibration leaves each camera a few tenths of a pixel off (bench: ~0.3 px), which moves
+// each pair's triangulated sheet by a few tenths of a millimetre — as much as all the matching
+// error on some booths. Every scan measures the booth again: the code's matched corners are
+// exact projective features seen by two or three cameras. Bundle adjustment over them, with the
+// calibration as a prior, puts the cameras where their images agree.
+#pragma once
+
+#include "capture/capture_set.hpp"
+#include "common/status.hpp"
+#include "recon/types.hpp"
+
+#include <vector>
+
+namespace facescan::recon {
+
+struct BundleParams {
+	bool enabled = true;
+	/// How far the calibration may be off, one sigma: each camera's rotation (rad, per axis)
+	/// and centre (mm, per axis) — a good calibration's (~0.3 px reprojection: ~0.05 mrad,
+	/// ~0.05 mm). The refinement's prior: the images leave some motions of the cameras nearly
+	/// free (a pair's depth scale against its convergence), and looser priors let the solution
+	/// wander along them (12 bench scenes: 3e-4 rad / 0.2 mm was worse than 5e-5 / 0.05 on every
+	/// one, 1e-3 / 0.5 worse than no refinement). A booth whose calibration is known to be worse
+	/// should say so here.
+	double sigma_rotation_rad = 5e-5;
+	double sigma_centre_mm = 0.05;
+	/// The matched corners' precision, pixels, and the residual beyond which an observation is
+	/// down-weighted (Huber): a wrong match must not drag the booth.
+	double sigma_px = 0.2;
+	double huber_px = 0.6;
+	int reweight_rounds = 2;
+	int max_iterations = 50;
+	/// Fewer tracks than this: the calibration stands as written.
+	int min_tracks = 30;
+};
+
+struct BundleCamera {
+	int camera = -1;
+	double rotation_mrad = 0; // how far the refinement turned it
+	double centre_mm = 0;	  // how far it moved its centre
+};
+
+struct BundleStats {
+	bool applied = false;
+	int tracks = 0;		  // distinct surface points (a square's corner or centre)
+	int tracks_3_views = 0;	  // ... seen by three cameras or more (two pairs)
+	int observations = 0;
+	double rms_before_px = 0; // reprojection of the tracks' best points, before and after
+	double rms_after_px = 0;
+	std::vector<BundleCamera> cameras;
+};
+
+/// Refines the rotations and centres of `cameras` (intrinsics fixed) on the tracks the pairs'
+/// code matches form: pair p's match and pair p+1's that share a feature of one square in camera
+/// p+1 are one surface point. Minimises the matched points' reprojection error (robust) plus the
+/// calibration prior. With fewer than `min_tracks` tracks, or when disabled, `cameras` is left
+/// untouched and stats->applied is false. -EINVAL when a match names a camera outside `cameras`.
+Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundleParams &params,
+			 std::vector<CameraModel> *cameras, BundleStats *stats);
+
+} // namespace facescan::recon
