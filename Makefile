@@ -107,10 +107,10 @@ $(LIB): $(LIB_OBJ)
 	$(Q)ar rcs $@ $^
 
 define BIN_RULE
-$(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(1)))): $(OUT)/obj/$(1).o $(LIB)
+$(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(1)))): $(OUT)/obj/$(1).o $(LIB) $(FW_NATIVE_LIB)
 	@mkdir -p $$(dir $$@)
 	@$$(if $$(V),,echo "  LD    $$@")
-	$$(Q)$$(CXX) $$(LDFLAGS) -o $$@ $$< -Wl,--start-group $$(LIB) -Wl,--end-group $$(LDLIBS)
+	$$(Q)$$(CXX) $$(LDFLAGS) -o $$@ $$< -Wl,--start-group $$(LIB) $$(FW_NATIVE_LIB) -Wl,--end-group $$(LDLIBS)
 endef
 $(foreach m,$(MAIN_SRC),$(eval $(call BIN_RULE,$(m))))
 
@@ -118,11 +118,11 @@ $(foreach m,$(MAIN_SRC),$(eval $(call BIN_RULE,$(m))))
 # The test objects are intermediates of the pattern rule below; keep them, or every `make test`
 # recompiles all the tests (minutes under ASan).
 .SECONDARY:
-$(OUT)/tests/%: $(OUT)/obj/tests/%.$$(if $$(wildcard tests/$$*.cpp),cpp,c).o $(LIB)
+$(OUT)/tests/%: $(OUT)/obj/tests/%.$$(if $$(wildcard tests/$$*.cpp),cpp,c).o $(LIB) $(FW_NATIVE_LIB)
 	@mkdir -p $(dir $@)
 	@$(if $(V),,echo "  LD    $@")
 	$(Q)$(CXX) $(LDFLAGS) -o $@ $< $(shell cat tests/$*.ldflags 2>/dev/null) \
-		-Wl,--start-group $(LIB) -Wl,--end-group $(LDLIBS) -lcmocka
+		-Wl,--start-group $(LIB) $(FW_NATIVE_LIB) -Wl,--end-group $(LDLIBS) -lcmocka
 
 # ---- the two commands the README names -----------------------------------------------
 test: deps

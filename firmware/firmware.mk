@@ -9,7 +9,10 @@
 #                                            host targets (FUZZ_SECONDS, default 60, each)
 #
 # firmware/core is deliberately not in libfacescan.a: it defines the firmware's main-loop
-# task and needs a board, which a host program must not get by accident.
+# task and needs a board, which a host program must not get by accident. The root Makefile
+# links $(FW_NATIVE_LIB) after libfacescan.a into every program and test, so that only the one
+# object that asks for it (the serial fake's MCU, drivers/serial/serial_mcu_model.c) pulls the
+# core in: a program that never starts the fake MCU links none of it.
 
 FW_CORE_SRC   := $(wildcard firmware/core/*.c)
 FW_NATIVE_SRC := firmware/boards/native/hal_native.c

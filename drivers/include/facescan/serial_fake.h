@@ -31,25 +31,26 @@ int fscan_serial_fake_plug(struct fscan_serial *link);
 /* How many times the transport was opened (1 after create). */
 int fscan_serial_fake_open_count(struct fscan_serial *link);
 
-/* ---- an in-process MCU model ----
- * A thread that speaks the firmware protocol on a descriptor: the fake's peer fd, or the master
- * side of a pty whose slave the termios backend opens. It answers HELLO (board native, version
- * 0.1, tick 1 MHz), GET/SET_TIMING (with the protocol's bounds), ARM, DISARM, FIRE (ACK, then
- * EVT_REPORT done with the 8 steps at the configured timing), ABORT, STATUS, CLEAR_FAULT, and
- * NACKs the rest as the firmware would. It sends EVT_BOOT when started. The thread ends on
- * hangup of its descriptor. */
+/* ---- the MCU at the far end ----
+ * The real firmware core (firmware/core) on the native board (firmware/boards/native), served
+ * by a thread on a descriptor: the fake's peer fd, or the master side of a pty whose slave the
+ * termios backend opens. It is the one MCU model of the tests (issue 12): everything it answers
+ * is the firmware's own answer (HELLO says board native, firmware FW_VERSION_*, tick 1 MHz).
+ * Its virtual clock follows the host's, but a sequence plays to its end at once. It sends
+ * EVT_BOOT when started; the thread ends on hangup of its descriptor. The native board is one
+ * per process: a second start while one runs fails with -EBUSY.
+ * Link with libfacescan-fw-native.a (the Makefile does, for every program and test). */
 struct fscan_mcu_model;
 /* Starts serving `fd` (not owned: the caller keeps it open until stop). */
 int fscan_mcu_model_start(int fd, struct fscan_mcu_model **ret_model);
 void fscan_mcu_model_stop(struct fscan_mcu_model *model); /* joins; accepts NULL */
-/* A debounced booth press: EVT_BUTTON, and when armed a scan (EVT_REPORT, trigger button). */
+/* Presses the booth button for 3 debounce periods, then releases it (virtual time): the
+ * firmware's debouncer counts one press, sends EVT_BUTTON, and when armed runs a scan. */
 int fscan_mcu_model_press(struct fscan_mcu_model *model);
-/* Mute: the model reads but answers nothing (a hung MCU). */
+/* Mute: bytes from the host are dropped before the firmware's UART (a hung MCU: nothing is
+ * answered); the firmware itself keeps running. */
 int fscan_mcu_model_set_mute(struct fscan_mcu_model *model, bool mute);
-/* Sends EVT_FAULT with `code` (enum fs_fault_code) and enters the fault state. */
-int fscan_mcu_model_fault(struct fscan_mcu_model *model, uint8_t code);
-/* Commands received (good frames), and sequences fired. */
-int fscan_mcu_model_commands(struct fscan_mcu_model *model);
+/* Sequences completed (the firmware's STATUS scan count). */
 int fscan_mcu_model_scans(struct fscan_mcu_model *model);
 
 /* fscan_serial_fake_ops->open fails with -ENOENT when cfg->device is this name. */
