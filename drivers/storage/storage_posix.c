@@ -44,16 +44,35 @@ static int free_bytes(const char *dir, uint64_t *ret)
 	return 0;
 }
 
-/* Sequence numbers of the spool's entries, sorted. *ret_seqs is malloc'ed. */
-static int cmp_u64(const void *a, const void *b)
+static void pause_ms(unsigned ms)
 {
-	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-	return x < y ? -1 : x > y;
+	struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+	while (ms && nanosleep(&ts, &ts) < 0 && errno == EINTR)
+		;
 }
 
-static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
+static int open_dir_at(int dirfd, const char *name)
 {
-	int fd = dup(p->spool_fd);
+	int fd = openat(dirfd, name, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
+	return fd < 0 ? -errno : fd;
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+	return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+static void free_names(char **v, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		free(v[i]);
+	free(v);
+}
+
+/* Names in dirfd, sorted; with dirs_only, only directories. *ret_names is malloc'ed. */
+static int list_names(int dirfd, bool dirs_only, char ***ret_names, size_t *ret_n)
+{
+	int fd = dup(dirfd);
 	if (fd < 0)
 		return -errno;
 	DIR *d = fdopendir(fd);
@@ -63,33 +82,128 @@ static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
 		return r;
 	}
 	rewinddir(d);
-	uint64_t *v = NULL;
+	char **v = NULL;
 	size_t n = 0, cap = 0;
 	int r = 0;
 	struct dirent *e;
 	while ((e = readdir(d))) {
-		char *end;
-		if (e->d_name[0] < '0' || e->d_name[0] > '9')
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
 			continue;
-		uint64_t seq = strtoull(e->d_name, &end, 10);
-		if (strcmp(end, SPOOL_SUFFIX))
+		struct stat st;
+		if (dirs_only && (fstatat(dirfd, e->d_name, &st, AT_SYMLINK_NOFOLLOW) < 0 || !S_ISDIR(st.st_mode)))
 			continue;
 		if (n == cap) {
 			cap = cap ? cap * 2 : 16;
-			uint64_t *nv = realloc(v, cap * sizeof(*v));
+			char **nv = realloc(v, cap * sizeof(*v));
 			if (!nv) {
 				r = -ENOMEM;
 				break;
 			}
 			v = nv;
 		}
-		v[n++] = seq;
+		if (!(v[n] = strdup(e->d_name))) {
+			r = -ENOMEM;
+			break;
+		}
+		n++;
 	}
 	closedir(d);
 	if (r < 0) {
-		free(v);
+		free_names(v, n);
 		return r;
 	}
+	if (n)
+		qsort(v, n, sizeof(*v), cmp_str);
+	*ret_names = v;
+	*ret_n = n;
+	return 0;
+}
+
+static int remove_tree_at(int dirfd, const char *name)
+{
+	int fd = open_dir_at(dirfd, name);
+	if (fd == -ENOENT)
+		return 0;
+	if (fd < 0)
+		return fd;
+	char **v = NULL;
+	size_t n = 0;
+	int r = list_names(fd, false, &v, &n);
+	for (size_t i = 0; r == 0 && i < n; i++)
+		if (unlinkat(fd, v[i], 0) < 0 && errno != ENOENT)
+			r = -errno;
+	free_names(v, n);
+	close(fd);
+	if (r == 0 && unlinkat(dirfd, name, AT_REMOVEDIR) < 0 && errno != ENOENT)
+		r = -errno;
+	return r;
+}
+
+static int read_all_at(int dirfd, const char *name, char **ret_buf, size_t *ret_len)
+{
+	int fd = openat(dirfd, name, O_RDONLY | O_CLOEXEC);
+	if (fd < 0)
+		return -errno;
+	struct stat st;
+	int r = 0;
+	char *buf = NULL;
+	if (fstat(fd, &st) < 0) {
+		r = -errno;
+		goto out;
+	}
+	size_t size = (size_t)st.st_size;
+	if (!(buf = malloc(size + 1))) {
+		r = -ENOMEM;
+		goto out;
+	}
+	size_t got = 0;
+	while (got < size) {
+		ssize_t n = read(fd, buf + got, size - got);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n <= 0) {
+			r = n < 0 ? -errno : -EIO;
+			goto out;
+		}
+		got += (size_t)n;
+	}
+	buf[size] = '\0';
+	*ret_buf = buf;
+	*ret_len = size;
+	buf = NULL;
+out:
+	free(buf);
+	close(fd);
+	return r;
+}
+
+/* Sequence numbers of the spool's entries, sorted. *ret_seqs is malloc'ed. */
+static int cmp_u64(const void *a, const void *b)
+{
+	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+	return x < y ? -1 : x > y;
+}
+
+static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
+{
+	char **names = NULL;
+	size_t n_names = 0;
+	int r = list_names(p->spool_fd, false, &names, &n_names);
+	if (r < 0)
+		return r;
+	uint64_t *v = calloc(n_names ? n_names : 1, sizeof(*v));
+	size_t n = 0;
+	for (size_t i = 0; v && i < n_names; i++) {
+		char *end;
+		if (names[i][0] < '0' || names[i][0] > '9')
+			continue;
+		uint64_t seq = strtoull(names[i], &end, 10);
+		if (!strcmp(end, SPOOL_SUFFIX))
+			v[n++] = seq;
+	}
+	free_names(names, n_names);
+	if (!v)
+		return -ENOMEM;
 	if (n)
 		qsort(v, n, sizeof(*v), cmp_u64);
 	*ret_seqs = v;
@@ -251,34 +365,13 @@ static int read_entry(struct posix *p, uint64_t seq, char **ret_buf, const char 
 {
 	char name[64];
 	snprintf(name, sizeof(name), "%020" PRIu64 SPOOL_SUFFIX, seq);
-	int fd = openat(p->spool_fd, name, O_RDONLY | O_CLOEXEC);
-	if (fd < 0)
-		return -errno;
-	struct stat st;
-	int r = 0;
 	char *buf = NULL;
-	if (fstat(fd, &st) < 0) {
-		r = -errno;
-		goto out;
-	}
-	size_t size = (size_t)st.st_size;
-	buf = malloc(size + 1);
-	if (!buf) {
-		r = -ENOMEM;
-		goto out;
-	}
-	size_t got = 0;
-	while (got < size) {
-		ssize_t n = read(fd, buf + got, size - got);
-		if (n < 0 && errno == EINTR)
-			continue;
-		if (n <= 0) {
-			r = n < 0 ? -errno : -EBADMSG;
-			goto out;
-		}
-		got += (size_t)n;
-	}
-	buf[size] = '\0';
+	size_t size = 0;
+	int r = read_all_at(p->spool_fd, name, &buf, &size);
+	if (r == -EIO)
+		r = -EBADMSG; /* shorter than its size said */
+	if (r < 0)
+		return r;
 	size_t mlen = strlen(SPOOL_MAGIC);
 	char *end;
 	if (size < mlen || memcmp(buf, SPOOL_MAGIC, mlen)) {
@@ -308,7 +401,6 @@ static int read_entry(struct posix *p, uint64_t seq, char **ret_buf, const char 
 	buf = NULL;
 out:
 	free(buf);
-	close(fd);
 	return r;
 }
 
@@ -402,139 +494,6 @@ static int posix_share_free(void *ctx, uint64_t *ret_bytes)
  * daemon is seen as it is now, not through a stale descriptor. */
 #define SCAN_MAGIC "FSCANSCAN 1\n"
 #define DONE_PREFIX ".done-"
-
-static void pause_ms(unsigned ms)
-{
-	struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
-	while (ms && nanosleep(&ts, &ts) < 0 && errno == EINTR)
-		;
-}
-
-static int open_dir_at(int dirfd, const char *name)
-{
-	int fd = openat(dirfd, name, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
-	return fd < 0 ? -errno : fd;
-}
-
-static int cmp_str(const void *a, const void *b)
-{
-	return strcmp(*(char *const *)a, *(char *const *)b);
-}
-
-static void free_names(char **v, size_t n)
-{
-	for (size_t i = 0; i < n; i++)
-		free(v[i]);
-	free(v);
-}
-
-/* Names in dirfd, sorted; with dirs_only, only directories. *ret_names is malloc'ed. */
-static int list_names(int dirfd, bool dirs_only, char ***ret_names, size_t *ret_n)
-{
-	int fd = dup(dirfd);
-	if (fd < 0)
-		return -errno;
-	DIR *d = fdopendir(fd);
-	if (!d) {
-		int r = -errno;
-		close(fd);
-		return r;
-	}
-	rewinddir(d);
-	char **v = NULL;
-	size_t n = 0, cap = 0;
-	int r = 0;
-	struct dirent *e;
-	while ((e = readdir(d))) {
-		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
-			continue;
-		struct stat st;
-		if (dirs_only && (fstatat(dirfd, e->d_name, &st, AT_SYMLINK_NOFOLLOW) < 0 || !S_ISDIR(st.st_mode)))
-			continue;
-		if (n == cap) {
-			cap = cap ? cap * 2 : 16;
-			char **nv = realloc(v, cap * sizeof(*v));
-			if (!nv) {
-				r = -ENOMEM;
-				break;
-			}
-			v = nv;
-		}
-		if (!(v[n] = strdup(e->d_name))) {
-			r = -ENOMEM;
-			break;
-		}
-		n++;
-	}
-	closedir(d);
-	if (r < 0) {
-		free_names(v, n);
-		return r;
-	}
-	if (n)
-		qsort(v, n, sizeof(*v), cmp_str);
-	*ret_names = v;
-	*ret_n = n;
-	return 0;
-}
-
-static int remove_tree_at(int dirfd, const char *name)
-{
-	int fd = open_dir_at(dirfd, name);
-	if (fd == -ENOENT)
-		return 0;
-	if (fd < 0)
-		return fd;
-	char **v = NULL;
-	size_t n = 0;
-	int r = list_names(fd, false, &v, &n);
-	for (size_t i = 0; r == 0 && i < n; i++)
-		if (unlinkat(fd, v[i], 0) < 0 && errno != ENOENT)
-			r = -errno;
-	free_names(v, n);
-	close(fd);
-	if (r == 0 && unlinkat(dirfd, name, AT_REMOVEDIR) < 0 && errno != ENOENT)
-		r = -errno;
-	return r;
-}
-
-static int read_all_at(int dirfd, const char *name, char **ret_buf, size_t *ret_len)
-{
-	int fd = openat(dirfd, name, O_RDONLY | O_CLOEXEC);
-	if (fd < 0)
-		return -errno;
-	struct stat st;
-	int r = 0;
-	char *buf = NULL;
-	if (fstat(fd, &st) < 0) {
-		r = -errno;
-		goto out;
-	}
-	size_t size = (size_t)st.st_size;
-	if (!(buf = malloc(size + 1))) {
-		r = -ENOMEM;
-		goto out;
-	}
-	size_t got = 0;
-	while (got < size) {
-		ssize_t n = read(fd, buf + got, size - got);
-		if (n < 0 && errno == EINTR)
-			continue;
-		if (n <= 0) {
-			r = n < 0 ? -errno : -EIO;
-			goto out;
-		}
-		got += (size_t)n;
-	}
-	buf[size] = '\0';
-	*ret_buf = buf;
-	*ret_len = size;
-	buf = NULL;
-out:
-	free(buf);
-	close(fd);
-	return r;
-}
 
 struct manifest {
 	char *buf;             /* owns the strings below */

@@ -21,6 +21,7 @@
 
 #include "facescan/storage.h"
 #include "facescan/storage_fake.h"
+#include "drivers/storage_helpers.h"
 
 #define MARKER ".facescan-share"
 #define BASE "20260101T000001Z_aaaaaaaaaaaa"
@@ -32,13 +33,6 @@ struct env {
 	char files[8][128]; /* relpaths given to on_file, in order */
 	int n_files;
 };
-
-static void rm_rf(const char *path)
-{
-	char cmd[256];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", path);
-	assert_int_equal(system(cmd), 0);
-}
 
 static void touch(const char *path)
 {
@@ -89,32 +83,12 @@ static void set_mounted(struct env *e, bool mounted)
 		assert_int_equal(unlink(e->marker), 0);
 }
 
-/* Files under dir, any depth, hidden ones included. */
-static int count_files(const char *dir)
-{
-	DIR *d = opendir(dir);
-	if (!d)
-		return 0;
-	int n = 0;
-	struct dirent *de;
-	while ((de = readdir(d))) {
-		if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
-			continue;
-		char p[512];
-		snprintf(p, sizeof(p), "%s/%s", dir, de->d_name);
-		struct stat st;
-		n += stat(p, &st) == 0 && S_ISDIR(st.st_mode) ? count_files(p) : 1;
-	}
-	closedir(d);
-	return n;
-}
-
 /* Files on the share, the marker not counted. */
 static int share_count(struct env *e)
 {
 	if (is_fake(e))
 		return fscan_storage_fake_share_count(e->st);
-	return count_files(e->share) - (access(e->marker, F_OK) == 0);
+	return count_files(e->share, NULL) - (access(e->marker, F_OK) == 0);
 }
 
 static bool share_has(struct env *e, const char *relpath, const char *want)
@@ -219,7 +193,7 @@ static void contract_unmounted_share(const struct fscan_storage_ops *ops)
 	assert_int_equal(e->n_files, 0);
 	assert_int_equal(share_count(e), 0); /* nothing on the local disk under the mount point */
 	if (!is_fake(e))
-		assert_int_equal(count_files(e->share), 0);
+		assert_int_equal(count_files(e->share, NULL), 0);
 	assert_int_equal(fscan_storage_scans(e->st), 1);
 	assert_int_equal(fscan_storage_queued(e->st, "aaaaaaaaaaaa"), 1);
 	set_mounted(e, true);
