@@ -752,7 +752,10 @@ static int posix_recover(void *ctx, fscan_storage_id_cb on_failed, void *ud)
 			r = fd;
 			break;
 		}
-		bool complete = faccessat(fd, FSCAN_STORAGE_MANIFEST, F_OK, 0) == 0;
+		/* "manifest.json": an entry of facescand's spool before it moved here. Kept, not
+		 * reported failed: it is a complete scan this version does not deliver. */
+		bool complete = faccessat(fd, FSCAN_STORAGE_MANIFEST, F_OK, 0) == 0 ||
+				faccessat(fd, "manifest.json", F_OK, 0) == 0;
 		close(fd);
 		if (complete)
 			continue;
