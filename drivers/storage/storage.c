@@ -115,3 +115,67 @@ int fscan_storage_share_present(const char *share_dir, const char *marker)
 		return -ENAMETOOLONG;
 	return access(path, F_OK) == 0 ? 0 : -ENOENT;
 }
+
+/* One path component: a relpath without '/'. */
+int fscan_storage_check_name(const char *name)
+{
+	if (!name || strchr(name, '/') || strlen(name) > FSCAN_STORAGE_MAX_NAME)
+		return -EINVAL;
+	return fscan_storage_check_relpath(name);
+}
+
+int fscan_storage_queue(struct fscan_storage *storage, const char *base, const char *scan_id, const char *dir,
+			const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms)
+{
+	if (!storage || (!files && n_files) || fscan_storage_check_name(base) < 0 || base[0] == '.' ||
+	    fscan_storage_check_name(scan_id) < 0 || fscan_storage_check_name(dir) < 0)
+		return -EINVAL;
+	for (size_t i = 0; i < n_files; i++)
+		if (fscan_storage_check_name(files[i].name) < 0 || (!files[i].data && files[i].len) ||
+		    !strcmp(files[i].name, FSCAN_STORAGE_MANIFEST))
+			return -EINVAL;
+	return storage->ops->queue(storage->ctx, base, scan_id, dir, files, n_files, pause_ms);
+}
+
+int fscan_storage_deliver_next(struct fscan_storage *storage, struct fscan_storage_delivery *ret,
+			       fscan_storage_file_cb on_file, void *ud, unsigned pause_ms)
+{
+	if (!storage || !ret)
+		return -EINVAL;
+	return storage->ops->deliver_next(storage->ctx, ret, on_file, ud, pause_ms);
+}
+
+int fscan_storage_recover(struct fscan_storage *storage, fscan_storage_id_cb on_failed, void *ud)
+{
+	return storage ? storage->ops->recover(storage->ctx, on_failed, ud) : -EINVAL;
+}
+
+int fscan_storage_queued(struct fscan_storage *storage, const char *scan_id)
+{
+	if (!storage || fscan_storage_check_name(scan_id) < 0)
+		return -EINVAL;
+	return storage->ops->queued(storage->ctx, scan_id);
+}
+
+int fscan_storage_scans(struct fscan_storage *storage)
+{
+	return storage ? storage->ops->scans(storage->ctx) : -EINVAL;
+}
+
+int fscan_storage_writable(struct fscan_storage *storage)
+{
+	return storage ? storage->ops->writable(storage->ctx) : -EINVAL;
+}
+
+const char *fscan_storage_scan_id_of(const char *base)
+{
+	const char *us = strrchr(base, '_');
+	return us ? us + 1 : base;
+}
+
+/* Non-.json files first, in their order, then the .json ones: metadata last. */
+bool fscan_storage_is_metadata(const char *name)
+{
+	size_t n = strlen(name);
+	return n >= 5 && !strcmp(name + n - 5, ".json");
+}

@@ -80,6 +80,8 @@ int fscan_write_file_atomic(const char *dir, const char *name, const void *data,
 	int dirfd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
 	if (dirfd < 0)
 		return -errno;
+	/* Temp files of writers that died (kill -9 mid-write) go first. */
+	fscan_atomic_sweep(dirfd);
 	struct fscan_buf b = {data, len};
 	int r = fscan_atomic_write_at(dirfd, name, &b, 1, mode ? mode : 0640);
 	close(dirfd);

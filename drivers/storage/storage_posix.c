@@ -20,6 +20,7 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
+#include <time.h>
 #include <unistd.h>
 
 #define SPOOL_MAGIC "FSCANSPOOL 1 "
@@ -43,16 +44,35 @@ static int free_bytes(const char *dir, uint64_t *ret)
 	return 0;
 }
 
-/* Sequence numbers of the spool's entries, sorted. *ret_seqs is malloc'ed. */
-static int cmp_u64(const void *a, const void *b)
+static void pause_ms(unsigned ms)
 {
-	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-	return x < y ? -1 : x > y;
+	struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+	while (ms && nanosleep(&ts, &ts) < 0 && errno == EINTR)
+		;
 }
 
-static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
+static int open_dir_at(int dirfd, const char *name)
 {
-	int fd = dup(p->spool_fd);
+	int fd = openat(dirfd, name, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
+	return fd < 0 ? -errno : fd;
+}
+
+static int cmp_str(const void *a, const void *b)
+{
+	return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+static void free_names(char **v, size_t n)
+{
+	for (size_t i = 0; i < n; i++)
+		free(v[i]);
+	free(v);
+}
+
+/* Names in dirfd, sorted; with dirs_only, only directories. *ret_names is malloc'ed. */
+static int list_names(int dirfd, bool dirs_only, char ***ret_names, size_t *ret_n)
+{
+	int fd = dup(dirfd);
 	if (fd < 0)
 		return -errno;
 	DIR *d = fdopendir(fd);
@@ -62,33 +82,128 @@ static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
 		return r;
 	}
 	rewinddir(d);
-	uint64_t *v = NULL;
+	char **v = NULL;
 	size_t n = 0, cap = 0;
 	int r = 0;
 	struct dirent *e;
 	while ((e = readdir(d))) {
-		char *end;
-		if (e->d_name[0] < '0' || e->d_name[0] > '9')
+		if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, ".."))
 			continue;
-		uint64_t seq = strtoull(e->d_name, &end, 10);
-		if (strcmp(end, SPOOL_SUFFIX))
+		struct stat st;
+		if (dirs_only && (fstatat(dirfd, e->d_name, &st, AT_SYMLINK_NOFOLLOW) < 0 || !S_ISDIR(st.st_mode)))
 			continue;
 		if (n == cap) {
 			cap = cap ? cap * 2 : 16;
-			uint64_t *nv = realloc(v, cap * sizeof(*v));
+			char **nv = realloc(v, cap * sizeof(*v));
 			if (!nv) {
 				r = -ENOMEM;
 				break;
 			}
 			v = nv;
 		}
-		v[n++] = seq;
+		if (!(v[n] = strdup(e->d_name))) {
+			r = -ENOMEM;
+			break;
+		}
+		n++;
 	}
 	closedir(d);
 	if (r < 0) {
-		free(v);
+		free_names(v, n);
 		return r;
 	}
+	if (n)
+		qsort(v, n, sizeof(*v), cmp_str);
+	*ret_names = v;
+	*ret_n = n;
+	return 0;
+}
+
+static int remove_tree_at(int dirfd, const char *name)
+{
+	int fd = open_dir_at(dirfd, name);
+	if (fd == -ENOENT)
+		return 0;
+	if (fd < 0)
+		return fd;
+	char **v = NULL;
+	size_t n = 0;
+	int r = list_names(fd, false, &v, &n);
+	for (size_t i = 0; r == 0 && i < n; i++)
+		if (unlinkat(fd, v[i], 0) < 0 && errno != ENOENT)
+			r = -errno;
+	free_names(v, n);
+	close(fd);
+	if (r == 0 && unlinkat(dirfd, name, AT_REMOVEDIR) < 0 && errno != ENOENT)
+		r = -errno;
+	return r;
+}
+
+static int read_all_at(int dirfd, const char *name, char **ret_buf, size_t *ret_len)
+{
+	int fd = openat(dirfd, name, O_RDONLY | O_CLOEXEC);
+	if (fd < 0)
+		return -errno;
+	struct stat st;
+	int r = 0;
+	char *buf = NULL;
+	if (fstat(fd, &st) < 0) {
+		r = -errno;
+		goto out;
+	}
+	size_t size = (size_t)st.st_size;
+	if (!(buf = malloc(size + 1))) {
+		r = -ENOMEM;
+		goto out;
+	}
+	size_t got = 0;
+	while (got < size) {
+		ssize_t n = read(fd, buf + got, size - got);
+		if (n < 0 && errno == EINTR)
+			continue;
+		if (n <= 0) {
+			r = n < 0 ? -errno : -EIO;
+			goto out;
+		}
+		got += (size_t)n;
+	}
+	buf[size] = '\0';
+	*ret_buf = buf;
+	*ret_len = size;
+	buf = NULL;
+out:
+	free(buf);
+	close(fd);
+	return r;
+}
+
+/* Sequence numbers of the spool's entries, sorted. *ret_seqs is malloc'ed. */
+static int cmp_u64(const void *a, const void *b)
+{
+	uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+	return x < y ? -1 : x > y;
+}
+
+static int list_spool(struct posix *p, uint64_t **ret_seqs, size_t *ret_n)
+{
+	char **names = NULL;
+	size_t n_names = 0;
+	int r = list_names(p->spool_fd, false, &names, &n_names);
+	if (r < 0)
+		return r;
+	uint64_t *v = calloc(n_names ? n_names : 1, sizeof(*v));
+	size_t n = 0;
+	for (size_t i = 0; v && i < n_names; i++) {
+		char *end;
+		if (names[i][0] < '0' || names[i][0] > '9')
+			continue;
+		uint64_t seq = strtoull(names[i], &end, 10);
+		if (!strcmp(end, SPOOL_SUFFIX))
+			v[n++] = seq;
+	}
+	free_names(names, n_names);
+	if (!v)
+		return -ENOMEM;
 	if (n)
 		qsort(v, n, sizeof(*v), cmp_u64);
 	*ret_seqs = v;
@@ -250,34 +365,13 @@ static int read_entry(struct posix *p, uint64_t seq, char **ret_buf, const char 
 {
 	char name[64];
 	snprintf(name, sizeof(name), "%020" PRIu64 SPOOL_SUFFIX, seq);
-	int fd = openat(p->spool_fd, name, O_RDONLY | O_CLOEXEC);
-	if (fd < 0)
-		return -errno;
-	struct stat st;
-	int r = 0;
 	char *buf = NULL;
-	if (fstat(fd, &st) < 0) {
-		r = -errno;
-		goto out;
-	}
-	size_t size = (size_t)st.st_size;
-	buf = malloc(size + 1);
-	if (!buf) {
-		r = -ENOMEM;
-		goto out;
-	}
-	size_t got = 0;
-	while (got < size) {
-		ssize_t n = read(fd, buf + got, size - got);
-		if (n < 0 && errno == EINTR)
-			continue;
-		if (n <= 0) {
-			r = n < 0 ? -errno : -EBADMSG;
-			goto out;
-		}
-		got += (size_t)n;
-	}
-	buf[size] = '\0';
+	size_t size = 0;
+	int r = read_all_at(p->spool_fd, name, &buf, &size);
+	if (r == -EIO)
+		r = -EBADMSG; /* shorter than its size said */
+	if (r < 0)
+		return r;
 	size_t mlen = strlen(SPOOL_MAGIC);
 	char *end;
 	if (size < mlen || memcmp(buf, SPOOL_MAGIC, mlen)) {
@@ -307,7 +401,6 @@ static int read_entry(struct posix *p, uint64_t seq, char **ret_buf, const char 
 	buf = NULL;
 out:
 	free(buf);
-	close(fd);
 	return r;
 }
 
@@ -395,6 +488,301 @@ static int posix_share_free(void *ctx, uint64_t *ret_bytes)
 	return r < 0 ? r : free_bytes(p->share, ret_bytes);
 }
 
+/* ---- scan entries: <spool>/<base>/ holding the files and "manifest" ----
+ * The manifest is "FSCANSCAN 1\n<scan-id>\n<dir>\n" and one file name per line. These
+ * functions open the spool by path on every call: a spool directory replaced under a running
+ * daemon is seen as it is now, not through a stale descriptor. */
+#define SCAN_MAGIC "FSCANSCAN 1\n"
+#define DONE_PREFIX ".done-"
+
+struct manifest {
+	char *buf;             /* owns the strings below */
+	const char *scan_id, *dir;
+	const char **names;
+	size_t n_names;
+};
+
+static void manifest_free(struct manifest *m)
+{
+	free(m->buf);
+	free(m->names);
+}
+
+/* Reads <entry>/manifest: -ENOENT none (interrupted, or being written), -EPROTO damaged. */
+static int manifest_read(int entry_fd, struct manifest *ret)
+{
+	struct manifest m = {0};
+	size_t len = 0;
+	int r = read_all_at(entry_fd, FSCAN_STORAGE_MANIFEST, &m.buf, &len);
+	if (r < 0)
+		return r;
+	size_t ml = strlen(SCAN_MAGIC);
+	if (len < ml || memcmp(m.buf, SCAN_MAGIC, ml) || m.buf[len - 1] != '\n') {
+		free(m.buf);
+		return -EPROTO;
+	}
+	size_t lines = 0;
+	for (size_t i = ml; i < len; i++)
+		lines += m.buf[i] == '\n';
+	if (lines < 2 || !(m.names = calloc(lines, sizeof(*m.names)))) {
+		r = lines < 2 ? -EPROTO : -ENOMEM;
+		manifest_free(&m);
+		return r;
+	}
+	char *p = m.buf + ml;
+	for (size_t k = 0; k < lines; k++) {
+		char *nl = strchr(p, '\n');
+		*nl = '\0';
+		if (fscan_storage_check_name(p) < 0) {
+			manifest_free(&m);
+			return -EPROTO;
+		}
+		if (k == 0)
+			m.scan_id = p;
+		else if (k == 1)
+			m.dir = p;
+		else
+			m.names[m.n_names++] = p;
+		p = nl + 1;
+	}
+	*ret = m;
+	return 0;
+}
+
+static int posix_queue(void *ctx, const char *base, const char *scan_id, const char *dir,
+		       const struct fscan_storage_file *files, size_t n_files, unsigned pause)
+{
+	struct posix *p = ctx;
+	uint64_t avail = 0, bytes = 0;
+	for (size_t i = 0; i < n_files; i++)
+		bytes += files[i].len;
+	int r = free_bytes(p->spool, &avail);
+	if (r < 0)
+		return r;
+	if (avail < bytes || avail - bytes < p->spool_min_free)
+		return -ENOSPC;
+	int spool = open_dir_at(AT_FDCWD, p->spool);
+	if (spool < 0)
+		return spool;
+	char *man = NULL;
+	int fd = -1;
+	if (mkdirat(spool, base, 0750) < 0 && errno != EEXIST) {
+		r = -errno;
+		goto out;
+	}
+	if ((fd = open_dir_at(spool, base)) < 0) {
+		r = fd;
+		goto out;
+	}
+	fscan_atomic_sweep(fd);
+	/* Queued again: the old manifest goes first, so a crash now reads as interrupted. */
+	if (unlinkat(fd, FSCAN_STORAGE_MANIFEST, 0) < 0 && errno != ENOENT) {
+		r = -errno;
+		goto out;
+	}
+	size_t mlen = strlen(SCAN_MAGIC) + strlen(scan_id) + strlen(dir) + 2;
+	for (size_t i = 0; i < n_files; i++) {
+		struct fscan_buf b = {files[i].data, files[i].len};
+		r = fscan_atomic_write_at(fd, files[i].name, &b, 1, p->mode);
+		if (r < 0)
+			goto out;
+		mlen += strlen(files[i].name) + 1;
+		pause_ms(pause);
+	}
+	if (!(man = malloc(mlen + 1))) {
+		r = -ENOMEM;
+		goto out;
+	}
+	char *w = man + sprintf(man, SCAN_MAGIC "%s\n%s\n", scan_id, dir);
+	for (size_t i = 0; i < n_files; i++)
+		w += sprintf(w, "%s\n", files[i].name);
+	struct fscan_buf b = {man, (size_t)(w - man)};
+	r = fscan_atomic_write_at(fd, FSCAN_STORAGE_MANIFEST, &b, 1, 0640);
+	if (r == 0 && fsync(spool) < 0)
+		r = -errno;
+out:
+	free(man);
+	if (fd >= 0)
+		close(fd);
+	close(spool);
+	return r;
+}
+
+/* Complete entries (a manifest present) in order; with want_id, only those of that scan. */
+static int count_complete(struct posix *p, const char *want_id)
+{
+	int spool = open_dir_at(AT_FDCWD, p->spool);
+	if (spool < 0)
+		return spool;
+	char **v = NULL;
+	size_t n = 0;
+	int r = list_names(spool, true, &v, &n);
+	int count = 0;
+	for (size_t i = 0; r == 0 && i < n; i++) {
+		if (v[i][0] == '.' || (want_id && strcmp(fscan_storage_scan_id_of(v[i]), want_id)))
+			continue;
+		int fd = open_dir_at(spool, v[i]);
+		if (fd >= 0 && faccessat(fd, FSCAN_STORAGE_MANIFEST, F_OK, 0) == 0)
+			count++;
+		if (fd >= 0)
+			close(fd);
+	}
+	free_names(v, n);
+	close(spool);
+	return r < 0 ? r : count;
+}
+
+static int posix_scans(void *ctx)
+{
+	return count_complete(ctx, NULL);
+}
+
+static int posix_queued(void *ctx, const char *scan_id)
+{
+	int r = count_complete(ctx, scan_id);
+	return r < 0 ? r : r > 0;
+}
+
+static int deliver_entry(struct posix *p, int spool, const char *base, struct fscan_storage_delivery *ret,
+			 fscan_storage_file_cb on_file, void *ud, unsigned pause)
+{
+	int fd = open_dir_at(spool, base);
+	if (fd < 0)
+		return fd;
+	struct manifest m = {0};
+	int r = manifest_read(fd, &m);
+	if (r < 0) {
+		close(fd);
+		return r == -ENOENT ? 0 : r; /* no manifest: being written, or left for recover */
+	}
+	char **data = calloc(m.n_names ? m.n_names : 1, sizeof(*data));
+	size_t *lens = calloc(m.n_names ? m.n_names : 1, sizeof(*lens));
+	uint64_t bytes = 0, avail = 0;
+	if (!data || !lens) {
+		r = -ENOMEM;
+		goto out;
+	}
+	for (size_t i = 0; i < m.n_names; i++) {
+		r = read_all_at(fd, m.names[i], &data[i], &lens[i]);
+		if (r < 0)
+			goto out;
+		bytes += lens[i];
+	}
+	/* The guard first: under an unmounted share's mount point nothing is written. */
+	r = share_present(p);
+	if (r == 0)
+		r = free_bytes(p->share, &avail);
+	if (r == 0 && (avail < bytes || avail - bytes < p->min_free))
+		r = -ENOSPC;
+	for (int pass = 0; r == 0 && pass < 2; pass++)
+		for (size_t i = 0; r == 0 && i < m.n_names; i++) {
+			if (fscan_storage_is_metadata(m.names[i]) != (pass == 1))
+				continue;
+			char rel[2 * FSCAN_STORAGE_MAX_NAME + 2];
+			snprintf(rel, sizeof(rel), "%s/%s", m.dir, m.names[i]);
+			r = deliver(p, rel, data[i], lens[i]);
+			if (r == 0 && on_file)
+				on_file(rel, ud);
+			if (r == 0)
+				pause_ms(pause);
+		}
+	if (r < 0)
+		goto out;
+	/* Out of the queue in one rename; a crash before the removal leaves a hidden .done- folder
+	 * that recover() clears, never a half entry that would look interrupted. */
+	char done[FSCAN_STORAGE_MAX_NAME + sizeof(DONE_PREFIX)];
+	snprintf(done, sizeof(done), DONE_PREFIX "%s", base);
+	if (renameat(spool, base, spool, done) < 0 || fsync(spool) < 0) {
+		r = -errno;
+		goto out;
+	}
+	r = remove_tree_at(spool, done);
+	if (r < 0)
+		goto out;
+	snprintf(ret->base, sizeof(ret->base), "%s", base);
+	snprintf(ret->scan_id, sizeof(ret->scan_id), "%s", m.scan_id);
+	snprintf(ret->dir, sizeof(ret->dir), "%s", m.dir);
+	r = 1;
+out:
+	for (size_t i = 0; data && i < m.n_names; i++)
+		free(data[i]);
+	free(data);
+	free(lens);
+	manifest_free(&m);
+	close(fd);
+	return r;
+}
+
+static int posix_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file,
+			      void *ud, unsigned pause)
+{
+	struct posix *p = ctx;
+	int spool = open_dir_at(AT_FDCWD, p->spool);
+	if (spool < 0)
+		return spool;
+	char **v = NULL;
+	size_t n = 0;
+	int r = list_names(spool, true, &v, &n);
+	for (size_t i = 0; r == 0 && i < n; i++)
+		if (v[i][0] != '.')
+			r = deliver_entry(p, spool, v[i], ret, on_file, ud, pause);
+	free_names(v, n);
+	close(spool);
+	return r;
+}
+
+static int posix_recover(void *ctx, fscan_storage_id_cb on_failed, void *ud)
+{
+	struct posix *p = ctx;
+	int spool = open_dir_at(AT_FDCWD, p->spool);
+	if (spool < 0)
+		return spool;
+	char **v = NULL;
+	size_t n = 0;
+	int r = list_names(spool, true, &v, &n), failed = 0;
+	for (size_t i = 0; r == 0 && i < n; i++) {
+		if (!strncmp(v[i], DONE_PREFIX, strlen(DONE_PREFIX))) {
+			r = remove_tree_at(spool, v[i]);
+			continue;
+		}
+		if (v[i][0] == '.')
+			continue;
+		int fd = open_dir_at(spool, v[i]);
+		if (fd < 0) {
+			r = fd;
+			break;
+		}
+		/* "manifest.json": an entry of facescand's spool before it moved here. Kept, not
+		 * reported failed: it is a complete scan this version does not deliver. */
+		bool complete = faccessat(fd, FSCAN_STORAGE_MANIFEST, F_OK, 0) == 0 ||
+				faccessat(fd, "manifest.json", F_OK, 0) == 0;
+		close(fd);
+		if (complete)
+			continue;
+		if (on_failed)
+			on_failed(fscan_storage_scan_id_of(v[i]), ud);
+		failed++;
+		r = remove_tree_at(spool, v[i]);
+	}
+	free_names(v, n);
+	close(spool);
+	return r < 0 ? r : failed;
+}
+
+static int posix_writable(void *ctx)
+{
+	struct posix *p = ctx;
+	int spool = open_dir_at(AT_FDCWD, p->spool);
+	if (spool < 0)
+		return spool == -ELOOP ? -ENOTDIR : spool;
+	struct fscan_buf b = {"", 0};
+	int r = fscan_atomic_write_at(spool, ".probe", &b, 1, 0600);
+	if (r == 0)
+		unlinkat(spool, ".probe", 0);
+	close(spool);
+	return r;
+}
+
 const struct fscan_storage_ops fscan_storage_posix_ops = {
 	.name = "posix",
 	.open = posix_open,
@@ -403,4 +791,10 @@ const struct fscan_storage_ops fscan_storage_posix_ops = {
 	.flush = posix_flush,
 	.pending = posix_pending,
 	.share_free = posix_share_free,
+	.queue = posix_queue,
+	.deliver_next = posix_deliver_next,
+	.recover = posix_recover,
+	.queued = posix_queued,
+	.scans = posix_scans,
+	.writable = posix_writable,
 };

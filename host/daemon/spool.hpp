@@ -1,17 +1,16 @@
-// Where finished scans go: first into the local spool (a commit point that survives a crash),
-// then onto the share with atomic renames (drivers/storage's atomic write). A scan lives in <spool>/queue/<base>/ as its files
-// plus manifest.json, written last: an entry without a manifest was interrupted while being
-// written and is reported failed at the next start. Delivery copies every file to
-// <share>/<patient>/<file> (temp file → fsync → rename → fsync dir; metadata .json last), then
-// removes the entry. Names are fixed per scan, so a delivery repeated after a crash replaces
-// the same files: nothing is duplicated. The share root is never created (an absent share is an
-// unmounted share); the patient folder is.
+// Where finished scans go: the storage driver's spool (drivers/include/facescan/storage.h, scan
+// entries), first locally (a commit point that survives a crash), then onto the share. This is
+// a C++ face over the driver handle and nothing more: the entry layout, the manifest, crash
+// recovery, the atomic writes (metadata .json last), the free-space check and the share-mounted
+// guard are the driver's. The spool is <spool_dir>/queue (the driver's spool directory) beside
+// the daemon's <spool_dir>/state.
 #pragma once
 
 #include "common/status.hpp"
+#include "facescan/storage.h"
 
+#include <memory>
 #include <string>
-#include <utility>
 #include <vector>
 
 namespace facescan::daemon {
@@ -28,46 +27,57 @@ struct Delivered {
 	std::vector<std::string> paths;  // where the files landed
 };
 
-/// Writes `contents` to dir/name atomically (mode 0640) with drivers/storage's
-/// fscan_write_file_atomic(). A crash leaves the old file or the new one, plus at most a hidden
-/// ".fscan-tmp.<pid>..." temp file that the next write into that directory removes.
+/// fscan_write_file_atomic() with a Status: dir/name (mode 0640) holds the old bytes or the
+/// new ones, never a mix.
 Status write_file_atomic(const std::string &dir, const std::string &name, const std::string &contents);
 
 class Spool {
 public:
 	/// share_marker: a file that must exist at the share's root for it to count as mounted
-	/// (drivers/storage's guard); "" checks only that the directory exists.
-	Spool(std::string spool_dir, std::string share_dir, long min_free_mb, std::string share_marker = "");
+	/// (the driver's guard); "" checks only that the directory exists. `ops`: the driver's
+	/// backend (posix by default; tests may pass the fake).
+	Spool(std::string spool_dir, std::string share_dir, long min_free_mb, std::string share_marker = "",
+	      const fscan_storage_ops *ops = &fscan_storage_posix_ops);
 
-	/// Creates <spool>/queue and <spool>/state when missing.
+	/// Creates <spool>, <spool>/state and opens the driver on <spool>/queue.
 	Status init();
-	/// Queues one scan. `delay_ms` pauses between files (fault tests).
+	/// fscan_storage_queue(): the scan's files, then its manifest.
 	Status put(const std::string &base, const std::string &scan_id, const std::string &patient_id,
 		   const std::vector<SpoolFile> &files, int delay_ms);
-	/// Removes entries that have no manifest (interrupted while spooling); returns their scan ids.
+	/// fscan_storage_recover(): the scan ids of entries interrupted while spooled.
 	Status recover(std::vector<std::string> *ret_failed_scan_ids);
-	/// Delivers queued entries oldest first and stops at the first failure, which is returned
-	/// (-ENOENT: share missing, -ENOSPC: share full, -EIO...). Delivered entries go to ret.
+	/// fscan_storage_deliver_next() until the queue is empty or the share fails, which is
+	/// returned (-ENOENT: share missing or not mounted, -ENOSPC: share full, -EIO...).
 	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms);
-	/// Whether a scan can be spooled now: a probe file written (atomically) and removed in the
-	/// queue. -EROFS / -EACCES / -ENOSPC / -ENOTDIR ... with a message naming the spool.
+	/// fscan_storage_writable(), with a message naming the spool.
 	Status writable() const;
-	/// Entries waiting in the queue.
+	/// Complete entries waiting.
 	size_t pending() const;
-	/// Whether scan `scan_id` waits in the queue, complete (its manifest written).
+	/// Whether scan `scan_id` waits in the queue, complete.
 	bool queued(const std::string &scan_id) const;
-	/// Whether the share can take `bytes` more now.
-	Status share_ready(unsigned long long bytes) const;
 
 	const std::string &state_dir() const
 	{
 		return state_dir_;
 	}
+	/// The driver handle (fake back doors in tests); null before init().
+	fscan_storage *handle() const
+	{
+		return st_.get();
+	}
 
 private:
-	std::string queue_dir_, state_dir_, share_dir_, share_marker_;
+	struct Close {
+		void operator()(fscan_storage *s) const
+		{
+			fscan_storage_destroy(s);
+		}
+	};
+	std::string root_, queue_dir_, state_dir_, share_dir_, share_marker_;
 	long min_free_mb_;
-	std::vector<std::string> entries() const;
+	const fscan_storage_ops *ops_;
+	std::unique_ptr<fscan_storage, Close> st_;
+	Status share_error(int rc) const;
 };
 
 } // namespace facescan::daemon

@@ -2,7 +2,7 @@
 // interrupted entries reported failed, nothing partial on the share.
 #include "daemon/spool.hpp"
 #include "facescan/storage.h"
-
+#include "facescan/storage_fake.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -216,6 +216,10 @@ static void test_share_not_mounted(void **)
 	assert_true(sp.deliver(&d, 0).ok());
 	assert_int_equal(d.size(), 1);
 	assert_int_equal(ls(share + "/P9").size(), 3);
+	assert_true(sp.deliver(&d, 0).ok()); // exactly once
+	assert_int_equal(d.size(), 0);
+	assert_int_equal(ls(share + "/P9").size(), 3);
+	assert_int_equal(sp.pending(), 0);
 	// the driver's guard itself
 	assert_int_equal(fscan_storage_share_present(share.c_str(), ".facescan-share"), 0);
 	assert_int_equal(fscan_storage_share_present(share.c_str(), "no-such-marker"), -ENOENT);
@@ -223,6 +227,35 @@ static void test_share_not_mounted(void **)
 	assert_int_equal(fscan_storage_share_present((tmp + "/nowhere").c_str(), nullptr), -ENOENT);
 	assert_int_equal(fscan_storage_share_present((share + "/.facescan-share").c_str(), nullptr), -ENOTDIR);
 	assert_int_equal(fscan_storage_share_present(share.c_str(), "a/b"), -EINVAL);
+}
+
+// The same face over the driver's fake backend: a crash mid-spool is reported failed, a
+// complete scan is delivered with its paths.
+static void test_fake_backend(void **)
+{
+	Spool sp(tmp + "/s10", "/nonexistent-share", 0, "", &fscan_storage_fake_ops);
+	assert_true(sp.init().ok());
+	const std::string a = "20260101T000010Z_aaaaaaaaaaaa", b = "20260101T000011Z_bbbbbbbbbbbb";
+	assert_int_equal(fscan_storage_fake_crash_next_queue(sp.handle(), 1), 0);
+	assert_int_equal(sp.put(a, "aaaaaaaaaaaa", "P10", files_of(a), 0).code(), -EINTR);
+	assert_true(sp.put(b, "bbbbbbbbbbbb", "P10", files_of(b), 0).ok());
+	assert_false(sp.queued("aaaaaaaaaaaa"));
+	assert_true(sp.queued("bbbbbbbbbbbb"));
+	std::vector<std::string> failed;
+	assert_true(sp.recover(&failed).ok());
+	assert_int_equal(failed.size(), 1);
+	assert_string_equal(failed[0].c_str(), "aaaaaaaaaaaa");
+	assert_int_equal(fscan_storage_fake_set_share_online(sp.handle(), false), 0);
+	std::vector<Delivered> d;
+	assert_int_equal(sp.deliver(&d, 0).code(), -ENOENT);
+	assert_int_equal(sp.pending(), 1);
+	assert_int_equal(fscan_storage_fake_set_share_online(sp.handle(), true), 0);
+	assert_true(sp.deliver(&d, 0).ok());
+	assert_int_equal(d.size(), 1);
+	assert_string_equal(d[0].patient_id.c_str(), "P10");
+	assert_string_equal(d[0].paths[2].c_str(), ("/nonexistent-share/P10/" + b + ".json").c_str());
+	assert_int_equal(fscan_storage_fake_share_count(sp.handle()), 3);
+	assert_int_equal(sp.pending(), 0);
 }
 
 int main()
@@ -235,6 +268,7 @@ int main()
 		cmocka_unit_test(test_interrupted_entry_reported_failed),
 		cmocka_unit_test(test_redelivery_after_crash_replaces),
 		cmocka_unit_test(test_share_not_mounted),
+		cmocka_unit_test(test_fake_backend),
 	};
 	return cmocka_run_group_tests(tests, setup, teardown);
 }

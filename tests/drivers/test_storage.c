@@ -21,6 +21,7 @@
 
 #include "facescan/storage.h"
 #include "facescan/storage_fake.h"
+#include "drivers/storage_helpers.h"
 
 struct env {
 	char root[64], share[96], spool[96], away[96];
@@ -28,13 +29,6 @@ struct env {
 	struct fscan_storage *st;
 	char *buf; /* last read_share result */
 };
-
-static void rm_rf(const char *path)
-{
-	char cmd[256];
-	snprintf(cmd, sizeof(cmd), "rm -rf '%s'", path);
-	assert_int_equal(system(cmd), 0);
-}
 
 static struct env *env_new(const struct fscan_storage_ops *ops)
 {
@@ -93,32 +87,6 @@ static const char *read_share(struct env *e, const char *relpath)
 	e->buf[n] = '\0';
 	fclose(f);
 	return e->buf;
-}
-
-/* Files (any depth, hidden ones included) under dir. */
-static int count_files(const char *dir, bool *ret_hidden)
-{
-	DIR *d = opendir(dir);
-	if (!d)
-		return 0;
-	int n = 0;
-	struct dirent *de;
-	while ((de = readdir(d))) {
-		if (!strcmp(de->d_name, ".") || !strcmp(de->d_name, ".."))
-			continue;
-		char p[512];
-		snprintf(p, sizeof(p), "%s/%s", dir, de->d_name);
-		struct stat st;
-		if (stat(p, &st) == 0 && S_ISDIR(st.st_mode)) {
-			n += count_files(p, ret_hidden);
-		} else {
-			n++;
-			if (de->d_name[0] == '.' && ret_hidden)
-				*ret_hidden = true;
-		}
-	}
-	closedir(d);
-	return n;
 }
 
 static int share_count(struct env *e)

@@ -47,6 +47,23 @@ enum fscan_storage_result {
 	FSCAN_STORAGE_SPOOLED = 1,    /* the file is in the spool, delivered by a later flush */
 };
 
+/* One file of a scan entry; name is one path component. */
+struct fscan_storage_file {
+	const char *name;
+	const void *data;
+	size_t len;
+};
+
+/* What fscan_storage_deliver_next() delivered. */
+struct fscan_storage_delivery {
+	char base[256];     /* the entry's name, "<UTC time>_<scan-id>" for the daemon */
+	char scan_id[256];
+	char dir[256];      /* the share folder the files went to (the patient id) */
+};
+
+typedef void (*fscan_storage_file_cb)(const char *relpath, void *ud);
+typedef void (*fscan_storage_id_cb)(const char *scan_id, void *ud);
+
 /* The backend interface. */
 struct fscan_storage_ops {
 	const char *name;
@@ -56,6 +73,15 @@ struct fscan_storage_ops {
 	int (*flush)(void *ctx, unsigned *ret_delivered);
 	int (*pending)(void *ctx);
 	int (*share_free)(void *ctx, uint64_t *ret_bytes);
+	/* Scan entries (see fscan_storage_queue() and below). */
+	int (*queue)(void *ctx, const char *base, const char *scan_id, const char *dir,
+		     const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms);
+	int (*deliver_next)(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file, void *ud,
+			    unsigned pause_ms);
+	int (*recover)(void *ctx, fscan_storage_id_cb on_failed, void *ud);
+	int (*queued)(void *ctx, const char *scan_id);
+	int (*scans)(void *ctx);
+	int (*writable)(void *ctx);
 };
 
 extern const struct fscan_storage_ops fscan_storage_posix_ops;
@@ -84,13 +110,46 @@ int fscan_storage_pending(struct fscan_storage *storage);
 /* Bytes available to us on the share (statvfs f_bavail * f_frsize); -ENOENT share missing. */
 int fscan_storage_share_free(struct fscan_storage *storage, uint64_t *ret_bytes);
 
+/* Scan entries: the spool's unit for facescand. An entry holds the files of one scan and a
+ * manifest written last; it is the commit point that survives a crash. Real backend:
+ * <spool>/<base>/ with its files and "manifest"; the per-file spool above lives beside it.
+ *
+ * Queues `n_files` files under entry `base` (one path component, sorted oldest first) for the
+ * share folder `dir` (one component). Queueing the same base again replaces the entry.
+ * `pause_ms` pauses between files (fault tests). 0, -EINVAL bad names, -ENOSPC spool below
+ * spool_min_free, -errno. */
+int fscan_storage_queue(struct fscan_storage *storage, const char *base, const char *scan_id, const char *dir,
+			const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms);
+/* Delivers the oldest complete entry to <share>/<dir>/<name>, each file atomically, files
+ * ending in ".json" last (whoever sees the metadata sees the rest complete), then removes the
+ * entry in one rename. on_file (may be NULL) gets each delivered relpath. Names are fixed per
+ * entry, so a delivery repeated after a crash replaces the same files: never a second copy.
+ * Returns 1 delivered (*ret filled), 0 nothing complete to deliver, -ENOENT share missing or
+ * not mounted (no marker; nothing is written under it), -ENOSPC the share would keep less than
+ * min_free_bytes after the whole entry, -EPROTO damaged manifest, -errno; on failure the entry
+ * stays queued. */
+int fscan_storage_deliver_next(struct fscan_storage *storage, struct fscan_storage_delivery *ret,
+			       fscan_storage_file_cb on_file, void *ud, unsigned pause_ms);
+/* Removes entries without a manifest (interrupted while queued) and the leftovers of a crash
+ * between delivery and removal. on_failed (may be NULL) gets each interrupted entry's scan id
+ * (what follows the last '_' of its base). Returns how many were interrupted, or -errno. */
+int fscan_storage_recover(struct fscan_storage *storage, fscan_storage_id_cb on_failed, void *ud);
+/* 1 when scan_id waits in the spool complete, 0 when not, -errno. */
+int fscan_storage_queued(struct fscan_storage *storage, const char *scan_id);
+/* Complete entries waiting, or -errno. */
+int fscan_storage_scans(struct fscan_storage *storage);
+/* Whether an entry could be queued now: a probe written atomically and removed in the spool.
+ * 0, -EROFS / -EACCES / -ENOSPC / -ENOENT / -ENOTDIR ... */
+int fscan_storage_writable(struct fscan_storage *storage);
+
 /* The share-mounted guard on its own: 0 when share_dir is a directory carrying `marker` at its
  * root (marker NULL or "": the directory alone is enough), -ENOENT when either is missing (an
  * unmounted network share leaves an empty mount point without the marker), -ENOTDIR,
  * -ENAMETOOLONG, -EINVAL (a marker with '/'). */
 int fscan_storage_share_present(const char *share_dir, const char *marker);
 /* The atomic write itself, usable on its own: <dir>/<name> gets exactly `len` bytes or stays
- * as it was. name is one path component. 0 or -errno (temp file removed on failure). */
+ * as it was. name is one path component. Temp files left in dir by writers that no longer run
+ * are removed first. 0 or -errno (temp file removed on failure). */
 int fscan_write_file_atomic(const char *dir, const char *name, const void *data, size_t len, mode_t mode);
 /* 0 when relpath is acceptable as documented for fscan_storage_put(), else -EINVAL. */
 int fscan_storage_check_relpath(const char *relpath);

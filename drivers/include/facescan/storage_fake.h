@@ -26,6 +26,12 @@ int fscan_storage_fake_share_count(struct fscan_storage *storage);
 /* The relpath of the n-th delivery (0 = first) in the order it reached the share, or NULL. */
 const char *fscan_storage_fake_delivery(struct fscan_storage *storage, unsigned n);
 
+/* The next fscan_storage_queue() stops after `files` files, as a process killed mid-spool
+ * would: the entry stays without its manifest and the call returns -EINTR. */
+int fscan_storage_fake_crash_next_queue(struct fscan_storage *storage, unsigned files);
+/* Spool writable (default) or not: queue and writable() fail with -EROFS. */
+int fscan_storage_fake_set_spool_writable(struct fscan_storage *storage, bool writable);
+
 #ifdef __cplusplus
 }
 #endif
