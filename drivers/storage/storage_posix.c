@@ -608,15 +608,25 @@ out:
 	return r;
 }
 
+/* The spool's entries (directories, sorted) and the spool's fd, which the caller closes with
+ * free_names() after walking them. On failure *ret_spool is negative and so is the result. */
+static int open_entries(struct posix *p, int *ret_spool, char ***ret_names, size_t *ret_n)
+{
+	*ret_spool = open_dir_at(AT_FDCWD, p->spool);
+	if (*ret_spool < 0)
+		return *ret_spool;
+	return list_names(*ret_spool, true, ret_names, ret_n);
+}
+
 /* Complete entries (a manifest present) in order; with want_id, only those of that scan. */
 static int count_complete(struct posix *p, const char *want_id)
 {
-	int spool = open_dir_at(AT_FDCWD, p->spool);
-	if (spool < 0)
-		return spool;
+	int spool;
 	char **v = NULL;
 	size_t n = 0;
-	int r = list_names(spool, true, &v, &n);
+	int r = open_entries(p, &spool, &v, &n);
+	if (spool < 0)
+		return r;
 	int count = 0;
 	for (size_t i = 0; r == 0 && i < n; i++) {
 		if (v[i][0] == '.' || (want_id && strcmp(fscan_storage_scan_id_of(v[i]), want_id)))
@@ -717,12 +727,12 @@ static int posix_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fsc
 			      void *ud, unsigned pause)
 {
 	struct posix *p = ctx;
-	int spool = open_dir_at(AT_FDCWD, p->spool);
-	if (spool < 0)
-		return spool;
+	int spool;
 	char **v = NULL;
 	size_t n = 0;
-	int r = list_names(spool, true, &v, &n);
+	int r = open_entries(p, &spool, &v, &n);
+	if (spool < 0)
+		return r;
 	for (size_t i = 0; r == 0 && i < n; i++)
 		if (v[i][0] != '.')
 			r = deliver_entry(p, spool, v[i], ret, on_file, ud, pause);
@@ -734,12 +744,13 @@ static int posix_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fsc
 static int posix_recover(void *ctx, fscan_storage_id_cb on_failed, void *ud)
 {
 	struct posix *p = ctx;
-	int spool = open_dir_at(AT_FDCWD, p->spool);
-	if (spool < 0)
-		return spool;
+	int spool;
 	char **v = NULL;
 	size_t n = 0;
-	int r = list_names(spool, true, &v, &n), failed = 0;
+	int r = open_entries(p, &spool, &v, &n);
+	if (spool < 0)
+		return r;
+	int failed = 0;
 	for (size_t i = 0; r == 0 && i < n; i++) {
 		if (!strncmp(v[i], DONE_PREFIX, strlen(DONE_PREFIX))) {
 			r = remove_tree_at(spool, v[i]);
