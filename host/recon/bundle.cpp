@@ -11,6 +11,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
+#include <opencv2/core/eigen.hpp>
 #include <unsupported/Eigen/NonLinearOptimization>
 #include <unsupported/Eigen/NumericalDiff>
 
@@ -25,7 +26,7 @@ namespace facescan::recon {
 namespace {
 
 struct Observation {
-	int track, camera;
+	int camera;
 	Eigen::Vector2d xy; // undistorted, normalised image coordinates
 };
 
@@ -48,12 +49,8 @@ std::vector<Pose> poses_at(const std::vector<CameraModel> &cams, const BundlePar
 		const cv::Vec3d C = cams[c].centre() + cv::Vec3d(x[Eigen::Index(6 * c + 3)], x[Eigen::Index(6 * c + 4)],
 								 x[Eigen::Index(6 * c + 5)]) *
 							       params.sigma_centre_mm;
-		const cv::Vec3d T = -(R * C);
-		for (int i = 0; i < 3; ++i) {
-			for (int j = 0; j < 3; ++j)
-				out[c].R(i, j) = R(i, j);
-			out[c].T[i] = T[i];
-		}
+		cv::cv2eigen(R, out[c].R);
+		cv::cv2eigen(-(R * C), out[c].T);
 	}
 	return out;
 }
@@ -188,23 +185,22 @@ double huber_cost(const Eigen::VectorXd &r, double k)
 void keep_gauge(const std::vector<CameraModel> &cams, std::vector<Pose> *poses)
 {
 	const int n = int(cams.size());
-	Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-	for (const CameraModel &c : cams)
-		mean += Eigen::Vector3d(c.centre()[0], c.centre()[1], c.centre()[2]) / n;
-	double L = 0;
-	for (const CameraModel &c : cams)
-		L += (Eigen::Vector3d(c.centre()[0], c.centre()[1], c.centre()[2]) - mean).norm() / n;
-	L = std::max(L, 1.0);
+	Eigen::Matrix3Xd centres(3, n);
+	for (int c = 0; c < n; ++c) {
+		Eigen::Vector3d C;
+		cv::cv2eigen(cams[size_t(c)].centre(), C);
+		centres.col(c) = C;
+	}
+	const Eigen::Vector3d mean = centres.rowwise().mean();
+	const double L0 = (centres.colwise() - mean).colwise().norm().mean();
+	const double L = std::max(L0, 1.0);
 	Eigen::Matrix3Xd src(3, 4 * n), dst(3, 4 * n);
 	for (int c = 0; c < n; ++c) {
 		const Pose &p = (*poses)[size_t(c)];
 		const Eigen::Vector3d Cn = -p.R.transpose() * p.T;
 		Eigen::Matrix3d R0;
-		for (int i = 0; i < 3; ++i)
-			for (int j = 0; j < 3; ++j)
-				R0(i, j) = cams[size_t(c)].R(i, j);
-		const cv::Vec3d co = cams[size_t(c)].centre();
-		const Eigen::Vector3d Co(co[0], co[1], co[2]);
+		cv::cv2eigen(cams[size_t(c)].R, R0);
+		const Eigen::Vector3d Co = centres.col(c);
 		src.col(4 * c) = Cn;
 		dst.col(4 * c) = Co;
 		for (int k = 0; k < 3; ++k) {
@@ -299,7 +295,7 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 			continue;
 		const size_t begin = problem.obs.size();
 		for (int i : list)
-			problem.obs.push_back({int(problem.tracks.size()), point_cam[size_t(i)],
+			problem.obs.push_back({point_cam[size_t(i)],
 					       Eigen::Vector2d(xy[size_t(i)].x, xy[size_t(i)].y)});
 		problem.tracks.push_back({begin, problem.obs.size()});
 		stats->tracks_3_views += list.size() >= 3;
@@ -338,19 +334,16 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 	keep_gauge(*cameras, &poses);
 	for (int c = 0; c < n; ++c) {
 		CameraModel &cam = (*cameras)[size_t(c)];
+		const Pose &p = poses[size_t(c)];
 		Eigen::Matrix3d R0;
-		for (int i = 0; i < 3; ++i)
-			for (int j = 0; j < 3; ++j)
-				R0(i, j) = cam.R(i, j);
-		const cv::Vec3d c0 = cam.centre();
-		const Eigen::Vector3d moved = -poses[size_t(c)].R.transpose() * poses[size_t(c)].T - Eigen::Vector3d(c0[0], c0[1], c0[2]);
-		const double turned = Eigen::AngleAxisd(poses[size_t(c)].R * R0.transpose()).angle();
-		stats->cameras.push_back({c, turned * 1e3, moved.norm()});
-		for (int i = 0; i < 3; ++i) {
-			for (int j = 0; j < 3; ++j)
-				cam.R(i, j) = poses[size_t(c)].R(i, j);
-			cam.T[i] = poses[size_t(c)].T[i];
-		}
+		Eigen::Vector3d C0;
+		cv::cv2eigen(cam.R, R0);
+		cv::cv2eigen(cam.centre(), C0);
+		const double moved = (-p.R.transpose() * p.T - C0).norm();
+		const double turned = Eigen::AngleAxisd(p.R * R0.transpose()).angle();
+		stats->cameras.push_back({c, turned * 1e3, moved});
+		cv::eigen2cv(p.R, cam.R);
+		cv::eigen2cv(p.T, cam.T);
 	}
 	stats->applied = true;
 	return {};
