@@ -280,6 +280,11 @@ int fscan_camera_collect(struct fscan_camera *cam, int timeout_ms, struct fscan_
 			continue;
 		}
 		if (n < 0) {
+			/* The backend failed (an isolated camera stack died): every camera still
+			 * owing a frame failed the same way. */
+			for (uint32_t c = 0; c < cam->count; c++)
+				if (!have[c])
+					cam->status[c] = n;
 			r = n;
 			break;
 		}

@@ -60,7 +60,10 @@ Status DriverCameras::open()
 	fscan_camera_params p{};
 	p.count = static_cast<uint32_t>(count_);
 	if (backend_ == "libcamera") {
-		ops = &fscan_camera_libcamera_ops;
+		// In a child process: libcamera 0.0.3 aborts its process when a camera vanishes
+		// mid-stream; the daemon must report the camera failed and live on.
+		ops = &fscan_camera_isolated_ops;
+		p.isolated_inner = &fscan_camera_libcamera_ops;
 	} else if (backend_ == "replay") {
 		ops = &fscan_camera_replay_ops;
 		p.source = source_.c_str();

@@ -18,6 +18,9 @@
  *   fscan_camera_replay_ops     a saved capture set directory (docs/capture-format.md)
  *   fscan_camera_sim_ops        renders through an injected callback (the booth simulator)
  *   fscan_camera_fake_ops       synthetic frames with fault injection (facescan/camera_fake.h)
+ *   fscan_camera_isolated_ops   another backend (libcamera by default) run in a child process:
+ *                               a camera stack that aborts or hangs fails the ops (-ENODEV,
+ *                               -ETIMEDOUT), not the caller's process
  * The common code (camera.c) groups frames by trigger and checks them, so each backend only
  * delivers single frames.
  *
@@ -77,6 +80,8 @@ struct fscan_camera_params {
 	/* sim: the renderer. */
 	fscan_camera_render_fn render;
 	void *render_user;
+	/* isolated: the backend the child process runs with these same params (NULL = libcamera). */
+	const struct fscan_camera_ops *isolated_inner;
 };
 
 struct fscan_camera_config {
@@ -121,6 +126,7 @@ extern const struct fscan_camera_ops fscan_camera_libcamera_ops;
 extern const struct fscan_camera_ops fscan_camera_replay_ops;
 extern const struct fscan_camera_ops fscan_camera_sim_ops;
 extern const struct fscan_camera_ops fscan_camera_fake_ops;
+extern const struct fscan_camera_ops fscan_camera_isolated_ops;
 
 struct fscan_camera;
 
