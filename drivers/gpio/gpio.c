@@ -1,6 +1,12 @@
 /* Common part of the GPIO driver: argument checks and the debounce filter over a backend's
  * raw edges. Time comes only from edge timestamps and the backend's clock, so the fake makes
- * it deterministic. */
+ * it deterministic.
+ *
+ * The debounce policy is the firmware's (firmware/core/debounce.c, FW_DEBOUNCE_MS), whichever
+ * side the button is wired to: a level counts once the line has held it for debounce_ms, and
+ * the event is stamped when that hold completed. A glitch shorter than that (a spark on a long
+ * booth cable) starts no scan; a press costs debounce_ms of latency, which a scan does not
+ * notice. tests/drivers/test_debounce_policy.c feeds the same traces to both. */
 #include "gpio_internal.h"
 
 #include <errno.h>
@@ -50,39 +56,31 @@ void fscan_gpio_destroy(struct fscan_gpio *gpio)
 	free(gpio);
 }
 
-static void report(struct fscan_gpio *gpio, bool active, uint64_t t, struct fscan_gpio_event *ev)
+/* True while the line holds a level the caller has not heard of: a change may settle. */
+static bool unsettled(const struct fscan_gpio *gpio)
 {
-	gpio->reported = active;
-	gpio->window_open = true;
-	gpio->window_end = t + gpio->debounce_ns;
-	ev->type = active ? FSCAN_GPIO_BUTTON_PRESSED : FSCAN_GPIO_BUTTON_RELEASED;
-	ev->timestamp_ns = t;
+	return gpio->raw != gpio->reported;
 }
 
-/* Closes an expired window; returns true with *ev filled if the line settled on the other
- * level during it. */
+/* Returns true with *ev filled if by `now` the line has held a new level for the window. */
 static bool settle(struct fscan_gpio *gpio, uint64_t now, struct fscan_gpio_event *ev)
 {
-	if (!gpio->window_open || now < gpio->window_end)
+	uint64_t held_at = gpio->raw_since + gpio->debounce_ns;
+	if (!unsettled(gpio) || now < held_at)
 		return false;
-	gpio->window_open = false;
-	if (gpio->raw == gpio->reported)
-		return false;
-	report(gpio, gpio->raw, gpio->window_end, ev);
+	gpio->reported = gpio->raw;
+	ev->type = gpio->raw ? FSCAN_GPIO_BUTTON_PRESSED : FSCAN_GPIO_BUTTON_RELEASED;
+	ev->timestamp_ns = held_at;
 	return true;
 }
 
-/* Feeds one raw edge; returns true with *ev filled if it is a reportable change. */
-static bool feed(struct fscan_gpio *gpio, const struct fscan_gpio_edge *edge, struct fscan_gpio_event *ev)
+/* Feeds one raw edge: a change of level restarts the hold. */
+static void feed(struct fscan_gpio *gpio, const struct fscan_gpio_edge *edge)
 {
+	if (edge->active == gpio->raw)
+		return;
 	gpio->raw = edge->active;
-	if (gpio->window_open && edge->timestamp_ns < gpio->window_end)
-		return false; /* bounce */
-	gpio->window_open = false;
-	if (edge->active == gpio->reported)
-		return false;
-	report(gpio, edge->active, edge->timestamp_ns, ev);
-	return true;
+	gpio->raw_since = edge->timestamp_ns;
 }
 
 static int64_t ms_until(uint64_t now, uint64_t end)
@@ -126,15 +124,15 @@ int fscan_gpio_read_event(struct fscan_gpio *gpio, int timeout_ms, struct fscan_
 				break;
 			if (expired(timeout_ms, start))
 				return -ETIMEDOUT;
-			/* Wait for the next raw edge, but not past the end of a window that may
-			 * settle on a change. */
+			/* Wait for the next raw edge, but not past the moment a new level has been
+			 * held for the window. */
 			int wait = timeout_ms;
 			if (timeout_ms > 0) {
 				uint64_t spent = mono_ms() - start;
 				wait = spent >= (uint64_t)timeout_ms ? 0 : (int)(timeout_ms - spent);
 			}
-			if (gpio->window_open && gpio->raw != gpio->reported) {
-				int64_t w = ms_until(gpio->ops->now_ns(gpio->ctx), gpio->window_end);
+			if (unsettled(gpio)) {
+				int64_t w = ms_until(gpio->ops->now_ns(gpio->ctx), gpio->raw_since + gpio->debounce_ns);
 				if (wait < 0 || w < wait)
 					wait = (int)w;
 			}
@@ -144,16 +142,14 @@ int fscan_gpio_read_event(struct fscan_gpio *gpio, int timeout_ms, struct fscan_
 		}
 		if (r < 0)
 			return r;
-		/* An edge after an expired window: the window settles first (at its own end),
-		 * then the edge is fed on the next round. */
-		if (gpio->window_open && edge.timestamp_ns >= gpio->window_end &&
-		    settle(gpio, edge.timestamp_ns, &ev)) {
+		/* A level held for the window before this edge came settles first (at the end of
+		 * its hold); the edge is fed on the next round. */
+		if (settle(gpio, edge.timestamp_ns, &ev)) {
 			gpio->pending_edge = edge;
 			gpio->has_pending_edge = true;
 			break;
 		}
-		if (feed(gpio, &edge, &ev))
-			break;
+		feed(gpio, &edge);
 	}
 	*ret_event = ev;
 	return 0;
@@ -172,9 +168,9 @@ int fscan_gpio_timeout_ms(const struct fscan_gpio *gpio)
 		return -1;
 	if (gpio->has_pending_edge)
 		return 0;
-	if (!gpio->window_open || gpio->raw == gpio->reported)
+	if (!unsettled(gpio))
 		return -1;
-	int64_t w = ms_until(gpio->ops->now_ns(gpio->ctx), gpio->window_end);
+	int64_t w = ms_until(gpio->ops->now_ns(gpio->ctx), gpio->raw_since + gpio->debounce_ns);
 	return w > 0x7fffffff ? 0x7fffffff : (int)w;
 }
 

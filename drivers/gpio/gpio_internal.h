@@ -10,8 +10,7 @@ struct fscan_gpio {
 	uint64_t debounce_ns;
 	bool reported;       /* debounced state the caller last heard */
 	bool raw;            /* level after the last raw edge */
-	bool window_open;    /* a debounce window follows the last reported change */
-	uint64_t window_end;
+	uint64_t raw_since;  /* timestamp of the edge that brought `raw` */
 	bool has_pending_edge;
 	struct fscan_gpio_edge pending_edge;
 };

@@ -379,7 +379,13 @@ static void test_gpio_button_and_led(void **)
 	json armed = rig.ask({{"cmd", "scan"}, {"patient", "GPIO-1"}});
 	assert_string_equal(armed["state"].get<std::string>().c_str(), "armed");
 	assert_int_equal(fscan_gpio_fake_output(gpio, FSCAN_GPIO_LED), 1); // LED on while armed
+	// A glitch shorter than the debounce window (20 ms) starts nothing; a held press does.
 	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
+	assert_int_equal(fscan_gpio_fake_button(gpio, false), 0);
+	std::this_thread::sleep_for(std::chrono::milliseconds(200));
+	assert_int_equal(rig.mcu->fired(), 0);
+	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
+	std::this_thread::sleep_for(std::chrono::milliseconds(60));
 	assert_int_equal(fscan_gpio_fake_button(gpio, false), 0);
 	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu->fired() == 1);
 	assert_true(rig.wait_state(State::idle));

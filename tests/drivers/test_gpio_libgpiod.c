@@ -170,10 +170,11 @@ static void test_kernel_edges_become_events(void **state)
 	struct fscan_gpio_event ev;
 	assert_int_equal(fscan_gpio_read_event(gpio, 100, &ev), 0);
 	assert_int_equal(ev.type, FSCAN_GPIO_BUTTON_PRESSED);
-	assert_int_equal(ev.timestamp_ns, 100ull * 1000000000ull);
+	/* Stamped when the level had been held for the window (debounce_ms = 10). */
+	assert_int_equal(ev.timestamp_ns, 100ull * 1000000000ull + 10ull * 1000000ull);
 	assert_int_equal(fscan_gpio_read_event(gpio, 100, &ev), 0);
 	assert_int_equal(ev.type, FSCAN_GPIO_BUTTON_RELEASED);
-	assert_int_equal(ev.timestamp_ns, 101ull * 1000000000ull);
+	assert_int_equal(ev.timestamp_ns, 101ull * 1000000000ull + 10ull * 1000000ull);
 	assert_int_equal(fscan_gpio_read_event(gpio, 10, &ev), -ETIMEDOUT);
 	expect_destroy();
 	fscan_gpio_destroy(gpio);

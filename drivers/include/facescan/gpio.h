@@ -31,7 +31,7 @@ struct fscan_gpio_config {
 	bool led_active_low;
 	unsigned reset_line;     /* MCU reset (output, starts deasserted) */
 	bool reset_active_low;   /* true for the usual active-low nRESET */
-	unsigned debounce_ms;    /* edges within this time after an accepted edge are bounce; 0 = 20 */
+	unsigned debounce_ms;    /* a level counts once held this long; 0 = 20 (the firmware's) */
 };
 
 enum fscan_gpio_event_type {
@@ -88,15 +88,15 @@ void fscan_gpio_destroy(struct fscan_gpio *gpio);
 
 /* Next debounced button event. Returns 0 with *ret_event filled, -ETIMEDOUT when nothing
  * happened within timeout_ms (0 = poll, <0 = forever), -EINTR, -EIO.
- * Debounce: an edge that changes the reported state is reported at once (no added latency on
- * a press); edges in the next debounce_ms are bounce; when that window ends and the line
- * settled on the other level, that change is reported (stamped at the window's end). */
+ * Debounce (the firmware's policy): a new level is reported once the line has held it for
+ * debounce_ms, stamped when that hold completed; every edge restarts the hold, so bounces
+ * delay the event and a glitch shorter than debounce_ms reports nothing. */
 int fscan_gpio_read_event(struct fscan_gpio *gpio, int timeout_ms,
 			  struct fscan_gpio_event *ret_event);
 /* For poll()-driven loops: readable while raw edges are pending ... */
 int fscan_gpio_fd(const struct fscan_gpio *gpio);
 /* ... and call fscan_gpio_read_event(gpio, 0, ...) again after at most this many ms even if
- * the fd stayed quiet (a debounce window is open). -1 = no deadline. */
+ * the fd stayed quiet (a new level is being held). -1 = no deadline. */
 int fscan_gpio_timeout_ms(const struct fscan_gpio *gpio);
 /* True while the (debounced) button is held. */
 bool fscan_gpio_button_pressed(const struct fscan_gpio *gpio);
