@@ -8,6 +8,7 @@ Environment: BENCH_DIR (work directory, default build/bench), BENCH_BOOTHS, BENC
 """
 import argparse
 import datetime
+import hashlib
 import json
 import os
 import resource
@@ -45,6 +46,21 @@ def measured(cmd, log):
     return float(wall), float(cpu), float(mb)
 
 
+def simulator_stamp():
+    """A hash of the sources a rendered set depends on (simulator, pattern, capture writer): a set
+    rendered by another version of them is rendered again, not reused."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    h = hashlib.sha256()
+    for top in ("tools/sim", "host/pattern", "host/capture"):
+        for dirpath, _, files in sorted(os.walk(os.path.join(root, top))):
+            for name in sorted(files):
+                path = os.path.join(dirpath, name)
+                h.update(os.path.relpath(path, root).encode())
+                with open(path, "rb") as f:
+                    h.update(f.read())
+    return h.hexdigest()
+
+
 def evaluate(fs, mesh, capture, out_json):
     r = subprocess.run([fs, "evaluate", mesh, capture, "--json", out_json], capture_output=True, text=True)
     if r.returncode != 0:
@@ -73,14 +89,19 @@ def main():
     work = os.environ.get("BENCH_DIR", "build/bench")
     os.makedirs(work, exist_ok=True)
     rows = []
+    stamp = simulator_stamp()
     for b in range(a.booths):
         booth = a.first_seed + b
         for k in range(a.heads):
             head = booth * 10 + k
             name = "booth%d-head%d" % (booth, head)
             cap = os.path.join(work, name)
-            # A set rendered by an earlier run of the same simulator is reused (BENCH_FRESH=1: never).
-            if os.environ.get("BENCH_FRESH") != "1" and os.path.exists(os.path.join(cap, "ground_truth.ply")):
+            # A set rendered by an earlier run of the same simulator sources is reused
+            # (BENCH_FRESH=1: never).
+            stamp_path = os.path.join(cap, "bench-simulator-stamp")
+            old_stamp = open(stamp_path).read() if os.path.exists(stamp_path) else ""
+            if (os.environ.get("BENCH_FRESH") != "1" and old_stamp == stamp
+                    and os.path.exists(os.path.join(cap, "ground_truth.ply"))):
                 print("bench: %s: reusing the rendered set" % name, flush=True)
             else:
                 subprocess.run(["rm", "-rf", cap], check=True)
@@ -90,6 +111,8 @@ def main():
                 if r.returncode != 0:
                     print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
                     sys.exit(1)
+                with open(stamp_path, "w") as f:
+                    f.write(stamp)
             row = {"name": name, "booth": booth, "head": head}
             drc, rep = cap + ".drc", cap + ".json"
             row["recon_s"], row["recon_cpu"], row["peak_mb"] = measured([fs, "recon", cap, "-o", drc, "--report", rep], cap + "-recon.log")
