@@ -7,7 +7,7 @@
 #
 # Layout of the build: release objects and binaries in build/, the sanitizer build in
 # build/asan/. Every directory <area>/<name>/main.c(pp) is a program: build/bin/<name>.
-# Everything else under firmware/protocol, drivers, host and tools is one static library.
+# Everything else under firmware/protocol, drivers, host and tools is a static library per layer.
 
 BUILD ?= build
 MODE  ?= release
@@ -38,16 +38,14 @@ INC_DRIVERS  := -Ifirmware -Idrivers/include -Ihost
 INC_APPS     := -Ifirmware -Idrivers/include -Ihost -Itools
 INCLUDES     := $(INC_APPS) -Itests
 # The roots of source $(1): the longest matching directory wins, as in the map.
-# host/preview also gets -Itools for the one listed exception (it renders with tools/sim's tracer).
 includes_for = $(strip \
 	$(if $(filter tests/%,$(1)),$(INCLUDES), \
 	$(if $(filter tools/% host/facescand/%,$(1)),$(INC_APPS), \
 	$(if $(filter host/daemon/%,$(1)),$(INC_DRIVERS), \
-	$(if $(filter host/preview/%,$(1)),$(INC_HOST) -Itools, \
 	$(if $(filter host/%,$(1)),$(INC_HOST), \
 	$(if $(filter drivers/%,$(1)),$(INC_DRIVERS), \
 	$(if $(filter firmware/%,$(1)),$(INC_FIRMWARE), \
-	$(INCLUDES)))))))))
+	$(INCLUDES))))))))
 DEPFLAGS = -MMD -MP
 CFLAGS   := -std=gnu11 $(WARN) $(OPTFLAGS) $(PKG_CFLAGS)
 CXXFLAGS := -std=gnu++17 $(WARN) $(OPTFLAGS) $(PKG_CFLAGS)
@@ -57,13 +55,27 @@ LDLIBS := $(OPENCV_LIBS) -ldraco -lassimp -ldcmnet -ldcmdata -loflog -lofstd -lc
 LDFLAGS := $(OPTFLAGS)
 
 # ---- sources -------------------------------------------------------------------------
-# Directories whose sources form libfacescan.a (host-side code, incl. the shared protocol).
-LIB_DIRS := firmware/protocol $(wildcard drivers/*) $(wildcard host/*) $(wildcard tools/*)
+# The library side is one static archive per layer (tools/layers.txt), in link order: each layer
+# may use only the layers after it. Programs link them in that order without a group, so a call
+# into a higher layer that nothing above pulled in fails to link; the include roots
+# (includes_for) and tests/build/test_layers.sh catch the includes.
+LAYERS := apps daemon host drivers format protocol
+LAYER_DIRS_protocol := firmware/protocol
+LAYER_DIRS_format   := host/common host/capture
+LAYER_DIRS_drivers  := $(wildcard drivers/*)
+LAYER_DIRS_daemon   := host/daemon
+LAYER_DIRS_apps     := $(wildcard tools/*) host/facescand
+LAYER_DIRS_host     := $(filter-out $(LAYER_DIRS_format) $(LAYER_DIRS_daemon) $(LAYER_DIRS_apps),$(wildcard host/*))
+layer_src = $(filter-out %/main.c %/main.cpp,$(foreach d,$(LAYER_DIRS_$(1)),$(wildcard $(d)/*.c $(d)/*.cpp)))
+layer_lib = $(OUT)/lib/libfacescan-$(1).a
+LIB_DIRS := $(foreach l,$(LAYERS),$(LAYER_DIRS_$(l)))
 ALL_SRC  := $(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.c $(d)/*.cpp))
 MAIN_SRC := $(filter %/main.c %/main.cpp,$(ALL_SRC))
 LIB_SRC  := $(filter-out $(MAIN_SRC),$(ALL_SRC))
 LIB_OBJ  := $(patsubst %,$(OUT)/obj/%.o,$(LIB_SRC))
-LIB      := $(OUT)/lib/libfacescan.a
+# Every layer's archive, in link order (the firmware core on the native board, which the serial
+# fake's MCU pulls in, goes between the drivers and the layers below them: firmware/firmware.mk).
+LIB      := $(foreach l,$(LAYERS),$(call layer_lib,$(l)))
 BINS     := $(foreach m,$(MAIN_SRC),$(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(m)))))
 
 # Tests: tests/<area>/test_<name>.c(pp) → $(OUT)/tests/<area>/test_<name>.
@@ -100,17 +112,23 @@ $(OUT)/obj/%.cpp.o: %.cpp
 	@$(if $(V),,echo "  CXX   $<")
 	$(Q)$(CXX) $(CXXFLAGS) $(call includes_for,$<) $(DEPFLAGS) -c $< -o $@
 
-$(LIB): $(LIB_OBJ)
-	@mkdir -p $(dir $@)
-	@rm -f $@
-	@$(if $(V),,echo "  AR    $@")
-	$(Q)ar rcs $@ $^
+define LAYER_LIB_RULE
+$(call layer_lib,$(1)): $(patsubst %,$(OUT)/obj/%.o,$(call layer_src,$(1)))
+	@mkdir -p $$(dir $$@)
+	@rm -f $$@
+	@$$(if $$(V),,echo "  AR    $$@")
+	$$(Q)ar rcs $$@ $$^
+endef
+$(foreach l,$(LAYERS),$(eval $(call LAYER_LIB_RULE,$(l))))
+# Programs: the layers in order, no group (see LAYERS).
+PROGRAM_LIBS = $(call layer_lib,apps) $(call layer_lib,daemon) $(call layer_lib,host) \
+	$(call layer_lib,drivers) $(FW_NATIVE_LIB) $(call layer_lib,format) $(call layer_lib,protocol)
 
 define BIN_RULE
 $(OUT)/bin/$(notdir $(patsubst %/,%,$(dir $(1)))): $(OUT)/obj/$(1).o $(LIB) $(FW_NATIVE_LIB)
 	@mkdir -p $$(dir $$@)
 	@$$(if $$(V),,echo "  LD    $$@")
-	$$(Q)$$(CXX) $$(LDFLAGS) -o $$@ $$< -Wl,--start-group $$(LIB) $$(FW_NATIVE_LIB) -Wl,--end-group $$(LDLIBS)
+	$$(Q)$$(CXX) $$(LDFLAGS) -o $$@ $$< $$(PROGRAM_LIBS) $$(LDLIBS)
 endef
 $(foreach m,$(MAIN_SRC),$(eval $(call BIN_RULE,$(m))))
 

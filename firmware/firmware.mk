@@ -8,9 +8,9 @@
 #                                            handler; `make fuzz` (tests/fuzz.mk) runs it and the
 #                                            host targets (FUZZ_SECONDS, default 60, each)
 #
-# firmware/core is deliberately not in libfacescan.a: it defines the firmware's main-loop
+# firmware/core is deliberately not in the host's libraries: it defines the firmware's main-loop
 # task and needs a board, which a host program must not get by accident. The root Makefile
-# links $(FW_NATIVE_LIB) after libfacescan.a into every program and test, so that only the one
+# links $(FW_NATIVE_LIB) after the drivers' library into every program and test, so that only the one
 # object that asks for it (the serial fake's MCU, drivers/serial/serial_mcu_model.c) pulls the
 # core in: a program that never starts the fake MCU links none of it.
 
@@ -30,7 +30,7 @@ $(FW_NATIVE_BIN): $(OUT)/obj/firmware/boards/native/main.c.o $(FW_NATIVE_LIB) $(
 	@$(if $(V),,echo "  LD    $@")
 	$(Q)$(CC) $(LDFLAGS) -o $@ $< $(FW_NATIVE_LIB) $(LIB)
 
-# Firmware tests link the core and the native board (before libfacescan.a, which has the
+# Firmware tests link the core and the native board (before the host's libraries, which have the
 # protocol they use).
 FW_TESTS := $(filter $(OUT)/tests/firmware/%,$(TEST_BINS))
 $(FW_TESTS): $(FW_NATIVE_LIB)

@@ -1,6 +1,6 @@
 #include "preview/preview.hpp"
 
-#include "sim/sim.hpp"
+#include "raycast/raycast.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -52,20 +52,19 @@ Camera frame_mesh(const recon::Mesh &mesh, double azimuth_deg, int width, int he
 
 namespace {
 
-Status build_tracer(const recon::Mesh &mesh, sim::Tracer *tracer)
+Status build_tracer(const recon::Mesh &mesh, raycast::Tracer *tracer)
 {
 	if (mesh.positions.empty() || mesh.triangles.empty())
 		return Status::error(-EINVAL, "preview: empty mesh");
-	sim::Surface surf;
-	surf.mesh.vertices.reserve(mesh.positions.size());
+	std::vector<cv::Vec3f> vertices;
+	vertices.reserve(mesh.positions.size());
 	for (const cv::Point3f &p : mesh.positions)
-		surf.mesh.vertices.emplace_back(p.x, p.y, p.z);
-	surf.mesh.triangles = mesh.triangles;
-	return tracer->build({surf});
+		vertices.emplace_back(p.x, p.y, p.z);
+	return tracer->build({{&vertices, &mesh.triangles}});
 }
 
 // One view through an already built tracer (the thumbnail's three views share one BVH).
-Status render_traced(const sim::Tracer &tracer, const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr,
+Status render_traced(const raycast::Tracer &tracer, const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr,
 		     cv::Mat *ret_mask)
 {
 	if (cam.width <= 0 || cam.height <= 0 || cam.width > 8192 || cam.height > 8192)
@@ -84,7 +83,7 @@ Status render_traced(const sim::Tracer &tracer, const recon::Mesh &mesh, const C
 				const double x = (2.0 * (i + 0.5) / cam.width - 1.0) * t * aspect;
 				const double y = (1.0 - 2.0 * (j + 0.5) / cam.height) * t;
 				const cv::Vec3d dir = cv::normalize(fwd + x * right + y * up);
-				const sim::Hit h = tracer.intersect(cam.eye, dir);
+				const raycast::Hit h = tracer.intersect(cam.eye, dir);
 				if (h.surface < 0)
 					continue;
 				mask.at<uint8_t>(j, i) = 255;
@@ -123,7 +122,7 @@ Status render_traced(const sim::Tracer &tracer, const recon::Mesh &mesh, const C
 
 Status render(const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr, cv::Mat *ret_mask)
 {
-	sim::Tracer tracer;
+	raycast::Tracer tracer;
 	Status s = build_tracer(mesh, &tracer);
 	if (!s.ok())
 		return s;
@@ -132,7 +131,7 @@ Status render(const recon::Mesh &mesh, const Camera &cam, cv::Mat *ret_bgr, cv::
 
 Status thumbnail(const recon::Mesh &mesh, int view_width, int view_height, cv::Mat *ret_bgr)
 {
-	sim::Tracer tracer;
+	raycast::Tracer tracer;
 	Status s = build_tracer(mesh, &tracer);
 	if (!s.ok())
 		return s;

@@ -1,4 +1,4 @@
-// Pictures of a scan mesh with the project's own ray caster (tools/sim's Embree Tracer): the
+// Pictures of a scan mesh with the project's own ray caster (host/raycast, Embree): the
 // thumbnail facescand writes beside each scan, and the reference silhouette the viewer's browser
 // test compares against. The framing is the web viewer's (host/viewer/page/viewer.js frames the
 // same way), so a picture here and a screenshot there show the same view.

@@ -25,7 +25,7 @@ Status face_coverage(const Rig &rig, const Scene &scene, FaceCoverage *ret_cover
 	Surface surface;
 	surface.mesh = head;
 	Tracer tracer;
-	st = tracer.build({surface});
+	st = build_tracer({surface}, &tracer);
 	if (!st.ok())
 		return st;
 	const size_t n = head.vertices.size();

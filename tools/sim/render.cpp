@@ -387,7 +387,7 @@ Status render_views(const Rig &rig, const std::vector<Surface> &surfaces, const 
 							      " texture must have 1 or 3 channels");
 	}
 	Tracer tracer;
-	Status st = tracer.build(surfaces);
+	Status st = build_tracer(surfaces, &tracer);
 	if (!st.ok())
 		return st;
 

@@ -11,13 +11,14 @@
 //   Scene   what stands in the booth: the procedural head, its pose, albedo, noise level.
 //   Surface any triangle mesh with a colour (constant, per vertex or UV texture): render_views()
 //           renders arbitrary surfaces (a calibration board, a plane, a sphere) through the rig.
-//   Tracer  ray casting (Embree) against a set of surfaces, for tests that need exact geometry.
+//   Tracer  ray casting against a set of surfaces (host/raycast's, on the surfaces' meshes).
 // Libraries never log; the CLI (`facescan simulate`) prints the timings.
 #pragma once
 
 #include "capture/capture_set.hpp"
 #include "common/status.hpp"
 #include "pattern/pattern.hpp"
+#include "raycast/raycast.hpp"
 
 #include <opencv2/core.hpp>
 
@@ -455,36 +456,12 @@ Status face_coverage(const Rig &rig, const Scene &scene, FaceCoverage *ret_cover
 
 // ---- ray casting -------------------------------------------------------------------------------
 
-struct Hit {
-	float t = 0;		// distance along the (normalised) ray, mm
-	int surface = -1;	// index into the surfaces vector, -1 = miss
-	int triangle = -1;
-	float u = 0, v = 0;	// barycentrics of vertices 1 and 2
-};
-
-/// Embree scene over a set of surfaces (the meshes are copied). Move-only; thread-safe queries.
-class Tracer {
-public:
-	Tracer();
-	~Tracer();
-	Tracer(Tracer &&) noexcept;
-	Tracer &operator=(Tracer &&) noexcept;
-	Tracer(const Tracer &) = delete;
-	Tracer &operator=(const Tracer &) = delete;
-
-	/// -EINVAL on a malformed mesh, -ENOMEM / -EIO when Embree fails.
-	Status build(const std::vector<Surface> &surfaces);
-	/// Closest hit along origin + t * normalize(dir) for t in (t_near, t_far), t in mm.
-	Hit intersect(const cv::Vec3d &origin, const cv::Vec3d &dir, double t_near = 0,
-		      double t_far = 1e30) const;
-	/// True when anything lies between origin and origin + t_far * normalize(dir).
-	bool occluded(const cv::Vec3d &origin, const cv::Vec3d &dir, double t_near,
-		      double t_far) const;
-
-private:
-	struct Impl;
-	std::unique_ptr<Impl> impl_;
-};
+/// The project's ray caster (host/raycast): surface = index into the surfaces vector.
+using Hit = raycast::Hit;
+using Tracer = raycast::Tracer;
+/// Builds `tracer` over the surfaces' meshes (copied). -EINVAL on a malformed mesh, -ENOMEM /
+/// -EIO when Embree fails.
+Status build_tracer(const std::vector<Surface> &surfaces, Tracer *tracer);
 
 /// The world-space ray through a (distorted) pixel of a camera: centre and unit direction.
 void pixel_ray(const CameraModel &camera, const cv::Point2d &pixel, cv::Vec3d *ret_origin,
