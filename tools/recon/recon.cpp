@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace facescan::cli {
@@ -345,15 +346,29 @@ int recon_main(int argc, char **argv)
 	};
 	std::vector<Output> outputs;
 	std::vector<char> drc;
+	// The atlas PNG is encoded on a second thread while Draco encodes the mesh: two independent,
+	// single-threaded encoders of about the same length.
+	std::vector<uchar> png;
+	bool png_ok = true;
+	std::thread png_encoder;
+	if (!mesh.texture.empty())
+		png_encoder = std::thread([&] {
+			try {
+				png_ok = cv::imencode(".png", mesh.texture, png);
+			} catch (const cv::Exception &) {
+				png_ok = false;
+			}
+		});
 	s = mesh_io::encode_draco(mesh, mesh_io::DracoOptions(), &drc);
+	if (png_encoder.joinable())
+		png_encoder.join();
 	if (!s.ok()) {
 		std::fprintf(stderr, "facescan recon: %s: %s\n", out.c_str(), s.message().c_str());
 		return 1;
 	}
 	outputs.push_back({out, std::string(drc.begin(), drc.end())});
 	if (!mesh.texture.empty()) {
-		std::vector<uchar> png;
-		if (!cv::imencode(".png", mesh.texture, png)) {
+		if (!png_ok) {
 			std::fprintf(stderr, "facescan recon: cannot encode the texture image\n");
 			return 1;
 		}
