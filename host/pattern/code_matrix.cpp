@@ -42,25 +42,43 @@ bool search(int rows, int cols, int letters, uint32_t seed, long max_steps,
 		x = uint8_t(rng() % uint32_t(letters));
 	std::vector<int> count(size_t(ipow(letters, kWindow)), 0);
 	auto interior = [&](int r, int c) { return r > 0 && c > 0 && r < rows - 1 && c < cols - 1; };
+	// The word of every interior cell, kept current: a flip changes one digit of five words, so
+	// each is updated by one product instead of being read again from the matrix (this search
+	// runs on every `facescan recon`, which regenerates its pattern from the id).
+	std::vector<int> words(m.size(), 0);
 	int conflicts = 0;
 	for (int r = 1; r < rows - 1; r++)
-		for (int c = 1; c < cols - 1; c++)
-			if (count[size_t(word_of(m, cols, letters, r, c))]++)
+		for (int c = 1; c < cols - 1; c++) {
+			const int w = word_of(m, cols, letters, r, c);
+			words[size_t(r) * size_t(cols) + size_t(c)] = w;
+			if (count[size_t(w)]++)
 				conflicts++;
-	// Moves a cell's letter and keeps the word counts and the conflict count current.
+		}
+	// Cell (r, c) is digit 4 - k of the word centred at (r + kDr[k], c + kDc[k]) (the cross is
+	// symmetric), whose weight is letters^k.
+	int weight[kWindow];
+	for (int k = 0; k < kWindow; k++)
+		weight[k] = ipow(letters, k);
+	// Moves a cell's letter and keeps the words, their counts and the conflict count current.
 	auto apply = [&](int r, int c, uint8_t letter) {
+		const int change = int(letter) - int(m[size_t(r) * size_t(cols) + size_t(c)]);
 		int delta = 0;
+		int *centre[kWindow];
+		int nc = 0;
 		for (int k = 0; k < kWindow; k++) {
-			int rr = r + kDr[k], cc = c + kDc[k];
-			if (interior(rr, cc) && --count[size_t(word_of(m, cols, letters, rr, cc))])
+			const int rr = r + kDr[k], cc = c + kDc[k];
+			if (!interior(rr, cc))
+				continue;
+			int &w = words[size_t(rr) * size_t(cols) + size_t(cc)];
+			if (--count[size_t(w)])
 				delta--;
+			w += change * weight[k];
+			centre[nc++] = &w;
 		}
 		m[size_t(r) * size_t(cols) + size_t(c)] = letter;
-		for (int k = 0; k < kWindow; k++) {
-			int rr = r + kDr[k], cc = c + kDc[k];
-			if (interior(rr, cc) && count[size_t(word_of(m, cols, letters, rr, cc))]++)
+		for (int k = 0; k < nc; k++)
+			if (count[size_t(*centre[k])]++)
 				delta++;
-		}
 		return delta;
 	};
 	for (long step = 0; step < max_steps && conflicts > 0; step++) {

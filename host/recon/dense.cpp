@@ -101,25 +101,49 @@ void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const
 }
 
 // The coarse stage: SGBM over a whole disparity range at half the matching resolution, for the
-// parts of the face no code point reaches (CV_32F at the matching resolution, NaN = none).
-cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, double hi, const DenseParams &params)
+// parts of the face no code point reaches (CV_32F at the matching resolution, NaN = none), on the
+// columns and rows of `need` (matching resolution) only. The images are cut to them (plus a
+// margin, so that SGBM's paths start outside them) and, to the left, by the largest disparity,
+// so that every match of a needed pixel stays inside the cut: the cut changes no disparity's
+// meaning, it only skips what the lit test would drop anyway.
+cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, double hi, cv::Rect need,
+			 const DenseParams &params)
 {
-	cv::Mat l2, r2;
-	cv::pyrDown(left, l2);
-	cv::pyrDown(right, r2);
+	const float nan = std::numeric_limits<float>::quiet_NaN();
+	cv::Mat out(left.size(), CV_32F, cv::Scalar(nan));
+	const cv::Rect frame(cv::Point(0, 0), left.size());
+	need &= frame;
+	if (need.empty())
+		return out;
 	const int mind = int(std::floor(lo / 2)) - 2;
+	const int block = params.block;
+	// The range as over the whole width (capped at half of it; SGBM needs its whole range
+	// inside the image, OpenCV asserts deep inside otherwise).
+	const int cols2 = (left.cols + 1) / 2;
 	int nd = int(std::ceil((hi - lo) / 2)) + 4;
-	nd = std::min(((nd + 15) / 16) * 16, std::max(16, (l2.cols / 2 / 16) * 16));
-	const int block = params.block, cn = l2.channels();
-	// SGBM needs its whole range inside the image (OpenCV asserts deep inside otherwise).
-	if (mind + nd > l2.cols - block - 1)
-		nd = ((l2.cols - block - 1 - mind) / 16) * 16;
-	if (nd < 16 || mind < -l2.cols)
-		return cv::Mat(left.size(), CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	nd = std::min(((nd + 15) / 16) * 16, std::max(16, (cols2 / 2 / 16) * 16));
+	if (mind + nd > cols2 - block - 1)
+		nd = ((cols2 - block - 1 - mind) / 16) * 16;
+	if (nd < 16 || mind < -cols2)
+		return out;
+	const int margin = 2 * params.coarse_margin_px;
+	const int reach_left = 2 * std::max(0, mind + nd), reach_right = 2 * std::max(0, -mind);
+	// Even corners: the half-resolution pixel x of the cut is pixel 2x of the matching one.
+	int x0 = std::max(0, need.x - margin - reach_left) & ~1, x1 = std::min(left.cols, need.br().x + margin + reach_right);
+	const int y0 = std::max(0, need.y - margin) & ~1, y1 = std::min(left.rows, need.br().y + margin);
+	// A cut too narrow for the range (a frame edge) searches the whole width instead of less range.
+	if (mind + nd > (x1 - x0) / 2 - block - 1) {
+		x0 = 0;
+		x1 = left.cols;
+	}
+	const cv::Rect cut(x0, y0, x1 - x0, y1 - y0);
+	cv::Mat l2, r2;
+	cv::pyrDown(left(cut), l2);
+	cv::pyrDown(right(cut), r2);
 	cv::Ptr<cv::StereoSGBM> sgbm =
-		cv::StereoSGBM::create(mind, nd, block, params.p1_factor * cn * block * block,
-				       params.p2_factor * cn * block * block, 1, 31, 10, params.speckle_window / 4, 1,
-				       cv::StereoSGBM::MODE_SGBM_3WAY);
+		cv::StereoSGBM::create(mind, nd, block, params.p1_factor * l2.channels() * block * block,
+				       params.p2_factor * l2.channels() * block * block, 1, 31, 10,
+				       params.speckle_window / 4, 1, cv::StereoSGBM::MODE_SGBM_3WAY);
 	cv::Mat d16;
 	sgbm->compute(l2, r2, d16);
 	cv::Mat coarse(l2.size(), CV_32F);
@@ -127,28 +151,50 @@ cv::Mat coarse_disparity(const cv::Mat &left, const cv::Mat &right, double lo, d
 		const short *dr = d16.ptr<short>(y);
 		float *cr = coarse.ptr<float>(y);
 		for (int x = 0; x < l2.cols; ++x)
-			cr[x] = dr[x] >= mind * 16 ? 2.f * dr[x] / 16.f : std::numeric_limits<float>::quiet_NaN();
+			cr[x] = dr[x] >= mind * 16 ? 2.f * dr[x] / 16.f : nan;
 	}
-	cv::Mat out;
-	cv::resize(coarse, out, left.size(), 0, 0, cv::INTER_NEAREST);
+	cv::resize(coarse, out(cut), cut.size(), 0, 0, cv::INTER_NEAREST);
 	return out;
 }
 
+// Where the pattern falls: its squares and gaps give every window about one pitch wide a
+// contrast that unlit skin, hair and the booth's walls (sensor noise only) do not have.
+cv::Mat pattern_lit(const cv::Mat &grey32, double pitch, const DenseParams &params)
+{
+	cv::Mat mean, sq;
+	const int win = std::max(5, int(std::lround(params.contrast_window_pitches * pitch)) | 1);
+	cv::boxFilter(grey32, mean, CV_32F, cv::Size(win, win));
+	cv::boxFilter(grey32.mul(grey32), sq, CV_32F, cv::Size(win, win));
+	const cv::Mat var = sq - mean.mul(mean);
+	const float min_var = float(params.min_pattern_contrast * params.min_pattern_contrast);
+	cv::Mat lit(grey32.size(), CV_8U);
+	for (int y = 0; y < lit.rows; ++y) {
+		const float *vr = var.ptr<float>(y);
+		uchar *lr = lit.ptr<uchar>(y);
+		for (int x = 0; x < lit.cols; ++x)
+			lr[x] = vr[x] < min_var ? 0 : 255;
+	}
+	return lit;
+}
 
 } // namespace
 
 // The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
 // search where they are not (its range is the seeds' disparities plus a margin, so it cannot
 // reach another copy of the slide); the long triangles that bridge such holes where the coarse
-// search found nothing.
-static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const RectifiedPair &rp, const CameraModel &a,
-			   const CameraModel &b, const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
-			   const DenseParams &params, DenseStats *stats)
+// search found nothing. Also returns where the pattern falls (`pattern_lit`): only those pixels
+// keep a prior, so the coarse search runs on them only.
+static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const cv::Mat &frame_b,
+			   const RectifiedPair &rp, const CameraModel &a, const CameraModel &b,
+			   const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
+			   const DenseParams &params, cv::Mat *ret_lit, DenseStats *stats)
 {
 	const bool coded = int(seeds.size()) >= params.min_seeds;
 	cv::Mat tight = coded ? disparity_prior(rp.size, seeds, seed_d, params.tight_edge_factor,
 						 params.extrapolate_spacings, &stats->median_spacing_px)
 			      : cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	const double pitch = stats->median_spacing_px > 0 ? 2 * stats->median_spacing_px : params.default_pitch_px;
+	*ret_lit = pattern_lit(grey_l32, pitch, params);
 	cv::Mat loose = coded ? disparity_prior(rp.size, seeds, seed_d, params.max_seed_edge_factor,
 						 params.extrapolate_spacings, nullptr)
 			      : tight.clone();
@@ -166,9 +212,13 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &frame_b, const Re
 		if (!(hi > lo))
 			return tight;
 	}
+	cv::Mat need = *ret_lit & ~has_value(tight), nz;
+	cv::findNonZero(need, nz);
+	if (nz.empty())
+		return tight;
 	cv::Mat right;
 	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, params);
+	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, cv::boundingRect(nz), params);
 	cv::Mat prior = tight;
 	for (int y = 0; y < prior.rows; ++y) {
 		float *pr = prior.ptr<float>(y);
@@ -580,27 +630,17 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
 	grey_l.convertTo(grey_l32, CV_32F);
-	cv::Mat prior = build_prior(left, frame_b, rp, a, b, seeds, seed_d, params, &stats);
-	// Only where the pattern falls: its squares and gaps give every window about one pitch wide
-	// a contrast that unlit skin, hair and the booth's walls (sensor noise only) do not have.
-	{
-		cv::Mat mean, sq;
-		const cv::Mat &g32 = grey_l32;
-		const double pitch = stats.median_spacing_px > 0 ? 2 * stats.median_spacing_px : params.default_pitch_px;
-		const int win = std::max(5, int(std::lround(params.contrast_window_pitches * pitch)) | 1);
-		cv::boxFilter(g32, mean, CV_32F, cv::Size(win, win));
-		cv::boxFilter(g32.mul(g32), sq, CV_32F, cv::Size(win, win));
-		cv::Mat var = sq - mean.mul(mean);
-		const float min_var = float(params.min_pattern_contrast * params.min_pattern_contrast);
-		for (int y = 0; y < prior.rows; ++y) {
-			float *pr = prior.ptr<float>(y);
-			const float *vr = var.ptr<float>(y);
-			for (int x = 0; x < prior.cols; ++x)
-				if (pr[x] == pr[x] && vr[x] < min_var) {
-					pr[x] = std::numeric_limits<float>::quiet_NaN();
-					stats.unlit++;
-				}
-		}
+	cv::Mat lit;
+	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, &lit, &stats);
+	// Only where the pattern falls.
+	for (int y = 0; y < prior.rows; ++y) {
+		float *pr = prior.ptr<float>(y);
+		const uchar *lr = lit.ptr<uchar>(y);
+		for (int x = 0; x < prior.cols; ++x)
+			if (pr[x] == pr[x] && !lr[x]) {
+				pr[x] = std::numeric_limits<float>::quiet_NaN();
+				stats.unlit++;
+			}
 	}
 
 	// The left view rectified; the right one rectified and warped by the prior in one remap:

@@ -46,6 +46,9 @@ struct DenseParams {
 	/// whole prior, over the disparities of the working volume: `volume_depth_mm` along the
 	/// cameras' axes and `volume_side_mm` across, around where the axes pass closest.
 	bool coarse = true;
+	/// It runs on the bounding box of the lit pixels the small triangles miss, plus this margin
+	/// (half-resolution pixels) so that SGBM's aggregation paths start outside it.
+	int coarse_margin_px = 32;
 	double volume_depth_mm = 150, volume_side_mm = 120;
 	/// The prior is extended past its rim by this many median seed spacings (nearest value).
 	double extrapolate_spacings = 0.0;

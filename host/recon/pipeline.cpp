@@ -219,23 +219,34 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 	// Dense: per pair, seeded by its sparse model, moved by the pair's registration, fused.
 	if (params.dense_enabled) {
 		std::vector<DenseCloud> clouds(n - 1);
+		std::vector<DensePairDebug> dbg(n - 1);
+		std::vector<Status> pair_status(n - 1);
+		// The pairs are independent, and much of a pair's time is single-threaded (the prior,
+		// the refinement, the flat refill, the filters): they run concurrently so that no core
+		// idles while one pair is in such a part.
+		cv::parallel_for_(cv::Range(0, int(n - 1)), [&](const cv::Range &r) {
+			for (int i = r.start; i < r.end; ++i) {
+				const size_t p = size_t(i);
+				pair_status[p] = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p],
+							    params.dense, &clouds[p], &report.pairs[p].dense,
+							    ret_debug ? &dbg[p] : nullptr);
+			}
+		});
 		for (size_t p = 0; p + 1 < n; ++p) {
-			DensePairDebug dbg;
-			s = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p], params.dense,
-				       &clouds[p], &report.pairs[p].dense, ret_debug ? &dbg : nullptr);
-			if (ret_debug && s.ok() && !dbg.left.empty()) {
+			s = pair_status[p];
+			if (ret_debug && s.ok() && !dbg[p].left.empty()) {
 				const std::string name = "pair" + std::to_string(p);
 				double lo = 0, hi = 0;
-				cv::Mat finite = has_value(dbg.prior);
+				cv::Mat finite = has_value(dbg[p].prior);
 				if (cv::countNonZero(finite) > 0)
-					cv::minMaxLoc(dbg.prior, &lo, &hi, nullptr, nullptr, finite);
+					cv::minMaxLoc(dbg[p].prior, &lo, &hi, nullptr, nullptr, finite);
 				cv::Mat overlay;
-				cv::addWeighted(dbg.left, 0.5, dbg.warped, 0.5, 0, overlay);
-				ret_debug->images.push_back({name + "_rectified_left", dbg.left});
-				ret_debug->images.push_back({name + "_warped_right", dbg.warped});
+				cv::addWeighted(dbg[p].left, 0.5, dbg[p].warped, 0.5, 0, overlay);
+				ret_debug->images.push_back({name + "_rectified_left", dbg[p].left});
+				ret_debug->images.push_back({name + "_warped_right", dbg[p].warped});
 				ret_debug->images.push_back({name + "_left_over_warped", overlay});
-				ret_debug->images.push_back({name + "_prior", colour_map(dbg.prior, lo, hi)});
-				ret_debug->images.push_back({name + "_disparity", colour_map(dbg.disparity, lo, hi)});
+				ret_debug->images.push_back({name + "_prior", colour_map(dbg[p].prior, lo, hi)});
+				ret_debug->images.push_back({name + "_disparity", colour_map(dbg[p].disparity, lo, hi)});
 				ret_debug->clouds.push_back({name + "_dense", clouds[p].points, clouds[p].confidence});
 			}
 			if (!s.ok())

@@ -9,13 +9,13 @@
 namespace facescan::recon {
 
 cv::Mat render_depth(const CameraModel &cam, const std::vector<cv::Point3f> &positions,
-		     const std::vector<cv::Vec3i> &triangles, double scale)
+		     const std::vector<cv::Vec3i> &triangles, double scale, const std::vector<cv::Point2d> *pixels)
 {
 	const int w = std::max(1, int(std::lround(cam.size.width * scale)));
 	const int h = std::max(1, int(std::lround(cam.size.height * scale)));
 	cv::Mat depth(h, w, CV_32F, cv::Scalar(std::numeric_limits<float>::infinity()));
 	std::vector<cv::Point3d> pts(positions.begin(), positions.end());
-	std::vector<cv::Point2d> px = project_points(cam, pts);
+	std::vector<cv::Point2d> px = pixels && pixels->size() == pts.size() ? *pixels : project_points(cam, pts);
 	std::vector<double> z(pts.size());
 	for (size_t i = 0; i < pts.size(); ++i) {
 		const cv::Vec3d c = cam.R * cv::Vec3d(pts[i]) + cam.T;
@@ -53,10 +53,13 @@ cv::Mat render_depth(const CameraModel &cam, const std::vector<cv::Point3f> &pos
 }
 
 std::vector<char> visible_in(const CameraModel &cam, const cv::Mat &depth, double scale,
-			     const std::vector<cv::Point3d> &points, double tolerance_mm)
+			     const std::vector<cv::Point3d> &points, double tolerance_mm,
+			     const std::vector<cv::Point2d> *pixels)
 {
 	std::vector<char> out(points.size(), 0);
-	const std::vector<cv::Point2d> px = project_points(cam, points);
+	const bool given = pixels && pixels->size() == points.size();
+	const std::vector<cv::Point2d> projected = given ? std::vector<cv::Point2d>() : project_points(cam, points);
+	const std::vector<cv::Point2d> &px = given ? *pixels : projected;
 	for (size_t i = 0; i < points.size(); ++i) {
 		const cv::Vec3d c = cam.R * cv::Vec3d(points[i]) + cam.T;
 		if (c[2] <= 0)

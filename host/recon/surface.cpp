@@ -3,6 +3,8 @@
 
 #include "recon/fusion.hpp"
 
+#include <opencv2/core/utility.hpp>
+
 #include <algorithm>
 #include <cmath>
 
@@ -163,28 +165,36 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 	// a mismatch (a dark nostril, an eye corner) the pair's own checks let through.
 	if (params.median_radius > 0) {
 		const int R = params.median_radius;
-		std::vector<float> next = radius, win;
-		for (int y = 0; y < H; ++y)
-			for (int x = 0; x < W; ++x) {
-				const size_t c = size_t(y) * size_t(W) + size_t(x);
-				if (radius[c] <= 0)
-					continue;
-				win.clear();
-				for (int dy = -R; dy <= R; ++dy)
-					for (int dx = -R; dx <= R; ++dx) {
-						const int xx = x + dx, yy = y + dy;
-						if (xx < 0 || yy < 0 || xx >= W || yy >= H)
-							continue;
-						const float q = radius[size_t(yy) * size_t(W) + size_t(xx)];
-						if (q > 0)
-							win.push_back(q);
+		std::vector<float> next = radius;
+		// Rows are independent (each reads `radius`, writes its own cells of `next`): a median per
+		// cell is the stage's largest cost, so they are spread over the cores.
+		std::vector<int> row_outliers(size_t(H), 0);
+		cv::parallel_for_(cv::Range(0, H), [&](const cv::Range &rows) {
+			std::vector<float> win;
+			for (int y = rows.start; y < rows.end; ++y)
+				for (int x = 0; x < W; ++x) {
+					const size_t c = size_t(y) * size_t(W) + size_t(x);
+					if (radius[c] <= 0)
+						continue;
+					win.clear();
+					for (int dy = -R; dy <= R; ++dy)
+						for (int dx = -R; dx <= R; ++dx) {
+							const int xx = x + dx, yy = y + dy;
+							if (xx < 0 || yy < 0 || xx >= W || yy >= H)
+								continue;
+							const float q = radius[size_t(yy) * size_t(W) + size_t(xx)];
+							if (q > 0)
+								win.push_back(q);
+						}
+					std::nth_element(win.begin(), win.begin() + long(win.size() / 2), win.end());
+					if (std::fabs(win[win.size() / 2] - radius[c]) > float(params.max_median_dev_mm)) {
+						next[c] = 0;
+						row_outliers[size_t(y)]++;
 					}
-				std::nth_element(win.begin(), win.begin() + long(win.size() / 2), win.end());
-				if (std::fabs(win[win.size() / 2] - radius[c]) > float(params.max_median_dev_mm)) {
-					next[c] = 0;
-					stats.outliers++;
 				}
-			}
+		});
+		for (int k : row_outliers)
+			stats.outliers += k;
 		radius.swap(next);
 	}
 

@@ -45,11 +45,12 @@ Status texture_mesh(const std::vector<cv::Mat> &textures, const std::vector<cv::
 	std::vector<std::vector<char>> vis(nc);
 	cv::parallel_for_(cv::Range(0, int(nc)), [&](const cv::Range &r) {
 		for (int c = r.start; c < r.end; ++c) {
+			// Projected once: the z-buffer and the visibility test need the same pixels.
 			px[size_t(c)] = project_points(cameras[size_t(c)], pts);
-			const cv::Mat depth =
-				render_depth(cameras[size_t(c)], mesh->positions, mesh->triangles, params.depth_scale);
+			const cv::Mat depth = render_depth(cameras[size_t(c)], mesh->positions, mesh->triangles,
+							   params.depth_scale, &px[size_t(c)]);
 			vis[size_t(c)] = visible_in(cameras[size_t(c)], depth, params.depth_scale, pts,
-						    params.occlusion_tolerance_mm);
+						    params.occlusion_tolerance_mm, &px[size_t(c)]);
 		}
 	});
 

@@ -186,6 +186,20 @@ void coarse_search_works_without_code(void **)
 	assert_true(e.n > 10000);
 	assert_true(e.median < 0.2);
 	assert_true(e.p95 < 1.3);
+	// The coarse search runs on the bounding box of the lit pixels the code misses (plus a
+	// margin), not the whole frame: the frame-wide search finds the same surface.
+	DenseParams whole = params;
+	whole.coarse_margin_px = 100000;
+	DenseCloud cloud_whole;
+	DenseStats stats_whole;
+	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, whole, &cloud_whole, &stats_whole)
+			    .ok());
+	const Errors ew = sphere_errors(s, cloud_whole);
+	std::printf("coarse over the whole frame: %zu points, coarse prior on %d px, median %.3f mm, p95 %.3f mm\n",
+		    ew.n, stats_whole.coarse_pixels, ew.median, ew.p95);
+	assert_true(std::fabs(double(e.n) - double(ew.n)) < 0.02 * double(ew.n));
+	assert_true(std::fabs(e.median - ew.median) < 0.01);
+	assert_true(std::fabs(e.p95 - ew.p95) < 0.05);
 	// Without the coarse search and without code there is nothing to match.
 	DenseParams off = params;
 	off.coarse = false;
