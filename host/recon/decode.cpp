@@ -210,6 +210,42 @@ Decoded decode_core(const std::vector<Square> &sq, const CodeMatrix &m, const st
 	return out;
 }
 
+// Connected components of the squares in `mem` (global indices), linked through neighbours
+// in either direction that stay inside `mem`.
+std::vector<std::vector<int>> linked_parts(const std::vector<Square> &sq, const std::vector<int> &mem)
+{
+	std::vector<int> in(sq.size(), -1);
+	for (int i : mem)
+		in[size_t(i)] = 0;
+	// Links are not always mutual: a square links to j when j is its nearest in a direction.
+	std::vector<std::vector<int>> adj(sq.size());
+	for (int i : mem)
+		for (int j : sq[size_t(i)].neighbours)
+			if (j >= 0 && in[size_t(j)] == 0) {
+				adj[size_t(i)].push_back(j);
+				adj[size_t(j)].push_back(i);
+			}
+	std::vector<std::vector<int>> parts;
+	for (int s : mem) {
+		if (in[size_t(s)] != 0)
+			continue;
+		parts.emplace_back();
+		std::vector<int> stack{s};
+		in[size_t(s)] = 1;
+		while (!stack.empty()) {
+			int i = stack.back();
+			stack.pop_back();
+			parts.back().push_back(i);
+			for (int j : adj[size_t(i)])
+				if (in[size_t(j)] == 0) {
+					in[size_t(j)] = 1;
+					stack.push_back(j);
+				}
+		}
+	}
+	return parts;
+}
+
 } // namespace
 
 void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDetections *dets)
@@ -219,26 +255,14 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 	const std::vector<int> table = m.word_table();
 	const size_t n = sq.size();
 	// Connected components of the (image-sense) grid: each is one projector's copy, or a part.
+	std::vector<int> all(n);
+	for (size_t s = 0; s < n; s++)
+		all[s] = int(s);
+	std::vector<std::vector<int>> members = linked_parts(sq, all);
 	std::vector<int> comp(n, -1);
-	std::vector<std::vector<int>> members;
-	for (size_t s = 0; s < n; s++) {
-		if (comp[s] >= 0)
-			continue;
-		int id = int(members.size());
-		members.emplace_back();
-		std::vector<int> stack{int(s)};
-		comp[s] = id;
-		while (!stack.empty()) {
-			int i = stack.back();
-			stack.pop_back();
-			members.back().push_back(i);
-			for (int j : sq[size_t(i)].neighbours)
-				if (j >= 0 && comp[size_t(j)] < 0) {
-					comp[size_t(j)] = id;
-					stack.push_back(j);
-				}
-		}
-	}
+	for (size_t c = 0; c < members.size(); c++)
+		for (int i : members[c])
+			comp[size_t(i)] = int(c);
 	// Directions in clockwise order (up, right, down, left) as indices of Square::neighbours.
 	const int cw[4] = {0, 2, 3, 1};
 	const int cw_pos[4] = {0, 3, 1, 2}; // inverse of cw
@@ -270,21 +294,102 @@ void decode_cells(const Pattern &pattern, const DecodeParams &params, CameraDete
 	// The slide may appear rotated by a quarter turn in the image (a projector rolled 90°, a
 	// camera on its side): per component, keep the rotation that decodes the most squares.
 	const int rotations = params.any_rotation ? 4 : 1;
-	std::vector<int> best_rot(members.size(), 0);
-	std::vector<Decoded> best(members.size());
-	std::array<int, 4> decoded_by_rot{};
-	for (size_t c = 0; c < members.size(); c++) {
+	std::vector<int> best_rot;
+	std::vector<Decoded> best;
+	// Returns how many squares the second best rotation decodes; `all`, if given, gets every
+	// rotation's decoding.
+	auto decode_member = [&](size_t c, std::vector<Decoded> *all) {
 		for (size_t k = 0; k < members[c].size(); k++)
 			local[size_t(members[c][k])] = int(k);
+		int runner_up = 0;
+		if (all)
+			all->clear();
 		for (int rot = 0; rot < rotations; rot++) {
 			Decoded d = decode_core(oriented(members[c], rot), m, table, params);
+			if (all)
+				all->push_back(d);
 			if (rot == 0 || d.decoded > best[c].decoded) {
+				if (rot > 0)
+					runner_up = std::max(runner_up, best[c].decoded);
 				best[c] = std::move(d);
 				best_rot[c] = rot;
+			} else {
+				runner_up = std::max(runner_up, d.decoded);
 			}
 		}
-		decoded_by_rot[size_t(best_rot[c])] += best[c].decoded;
+		return runner_up;
+	};
+	// Two projectors' copies that meet on the face are often linked into one component (the
+	// nearest square across the seam passes the neighbour test), and copies rolled by different
+	// quarter turns cannot both decode in one rotation: the copy that loses is left undecoded
+	// whole (random booths: 100+ squares with correct letters per camera). So the squares the
+	// best rotation leaves undecoded are split off into parts of their own; a part that decodes
+	// at least `split_min_decoded` squares in its own best rotation becomes a component, and
+	// the rest of the split goes back to where it was. Up to one split per projector.
+	for (size_t c = 0; c < members.size(); c++) {
+		best_rot.resize(members.size(), 0);
+		best.resize(members.size());
+		std::vector<Decoded> all;
+		decode_member(c, &all);
+		if (params.split_min_decoded <= 0 || members[c].size() < 2 * size_t(params.split_min_decoded))
+			continue;
+		for (int split = 0; split < params.max_splits; split++) {
+			// Split off: what the best rotation leaves undecoded, and what another rotation
+			// decodes together with more of its grid neighbours (the other copy's squares that
+			// the best rotation reads, by chance or by propagation, as cells of its own).
+			const std::vector<int> mem = members[c];
+			for (size_t k = 0; k < mem.size(); k++)
+				local[size_t(mem[k])] = int(k);
+			auto support = [&](size_t k, const Decoded &d) {
+				int n_dec = 0;
+				for (int j : sq[size_t(mem[k])].neighbours)
+					n_dec += j >= 0 && comp[size_t(j)] == int(c) && d.cell[size_t(local[size_t(j)])] >= 0;
+				return n_dec;
+			};
+			std::vector<int> rest;
+			for (size_t k = 0; k < mem.size(); k++) {
+				bool out = best[c].cell[k] < 0;
+				for (size_t r = 0; r < all.size() && !out; r++)
+					out = int(r) != best_rot[c] && all[r].cell[k] >= 0 &&
+					      support(k, all[r]) > support(k, best[c]);
+				if (out)
+					rest.push_back(mem[k]);
+			}
+			bool any = false;
+			for (std::vector<int> &part : linked_parts(sq, rest)) {
+				if (part.size() < size_t(params.split_min_decoded))
+					continue;
+				const size_t id = members.size();
+				for (int i : part)
+					comp[size_t(i)] = int(id);
+				members.push_back(part);
+				best_rot.resize(members.size(), 0);
+				best.resize(members.size());
+				const int runner_up = decode_member(id, nullptr);
+				// Four rotations tried on squares that did not decode once: one of them must
+				// stand out, or the decodings are chance agreements of wrong letters.
+				if (best[id].decoded >= params.split_min_decoded && best[id].decoded >= 2 * runner_up &&
+				    best[id].decoded * 4 >= int(part.size())) {
+					any = true;
+					continue;
+				}
+				for (int i : part)
+					comp[size_t(i)] = int(c);
+				members.pop_back();
+			}
+			if (!any)
+				break;
+			std::vector<int> kept;
+			for (int i : members[c])
+				if (comp[size_t(i)] == int(c))
+					kept.push_back(i);
+			members[c] = std::move(kept);
+			decode_member(c, &all);
+		}
 	}
+	std::array<int, 4> decoded_by_rot{};
+	for (size_t c = 0; c < members.size(); c++)
+		decoded_by_rot[size_t(best_rot[c])] += best[c].decoded;
 	// A component with no decoded square (a nose flank, a projector seam) takes the rotation
 	// most of the camera's squares decoded in: the projectors and cameras are rigid, so its
 	// corners and neighbours are then in the same order as the other camera's, which growing

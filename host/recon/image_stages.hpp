@@ -53,6 +53,10 @@ struct SquareParams {
 	double min_solidity = 0.80;	// area / convex hull area
 	/// Minimum contrast (inside - outside level) over the inside level.
 	double min_contrast = 0.25;
+	/// Blobs out of the area range, too big or too small, form another square size (mixed
+	/// projector pitches) when at least this many; each such size gets its own pass. 0 = one
+	/// size per image.
+	int min_class_squares = 15;
 };
 
 /// A detected square's pixels: its binary mask inside `box`, and its local light levels.
@@ -165,6 +169,11 @@ struct DecodeParams {
 	/// Try the slide turned by a quarter turn in the image (projectors rolled 90°, as in the
 	/// default simulated rig), per connected part of the grid.
 	bool any_rotation = true;
+	/// Squares a component's best rotation leaves undecoded are split off into parts; a part
+	/// that decodes at least this many in its own rotation becomes a component (two projectors'
+	/// copies linked across a seam, rolled differently). 0 = never split.
+	int split_min_decoded = 4;
+	int max_splits = 2; // per component: one per other projector
 };
 
 /// Decodes the code word (up, left, centre, right, down) of each square to its matrix cell,

@@ -74,42 +74,28 @@ double median_area(const std::vector<Component> &comps)
 	return median_of(a);
 }
 
-} // namespace
-
-Status find_squares(const cv::Mat &intensity, const SquareParams &params,
-		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs)
-{
-	if (intensity.empty() || intensity.type() != CV_32F)
-		return Status::error(EINVAL, "find_squares needs a CV_32F intensity image");
-	int window = params.first_window_px > 0 ? params.first_window_px
-						: std::max(15, std::min(intensity.cols, intensity.rows) / 20);
-	cv::Mat labels;
-	cv::Mat mask = local_mean_mask(intensity, window);
-	std::vector<Component> comps = components(mask, params.min_area_px, &labels);
-	if (comps.empty()) {
-		ret_squares->clear();
-		ret_blobs->clear();
-		return {};
-	}
-	double side = std::sqrt(median_area(comps));
-	if (params.window_sides > 0) {
-		int w2 = int(std::lround(params.window_sides * side));
-		if (w2 > 0 && (w2 > window * 1.3 || w2 < window / 1.3)) {
-			mask = local_mean_mask(intensity, w2);
-			comps = components(mask, params.min_area_px, &labels);
-			if (!comps.empty())
-				side = std::sqrt(median_area(comps));
-		}
-	}
-
+// The squares of one local-mean pass: the threshold at `window`, compact blobs, each
+// re-thresholded at its own midpoint and kept when solid. Blobs larger than `max_area` are
+// skipped before the costly part (merged squares, a lit wall). `side` sets the re-threshold's
+// margin.
+struct Pass {
 	std::vector<Square> squares;
 	std::vector<SquareBlob> blobs;
+	std::vector<float> skipped_areas; // component areas over max_area
+};
+
+Pass extract(const cv::Mat &intensity, const SquareParams &params, const cv::Mat &labels,
+	     const std::vector<Component> &comps, double side, double max_area)
+{
+	Pass out;
 	std::vector<float> inside, outside;
 	int margin = std::max(2, int(std::lround(0.2 * side)));
 	cv::Rect frame(0, 0, intensity.cols, intensity.rows);
 	for (const Component &c : comps) {
-		if (c.area > params.max_area_ratio * side * side * 1.2)
+		if (c.area > max_area) {
+			out.skipped_areas.push_back(float(c.area));
 			continue;
+		}
 		cv::Rect box(c.box.x - margin, c.box.y - margin, c.box.width + 2 * margin,
 			     c.box.height + 2 * margin);
 		box &= frame;
@@ -132,10 +118,10 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 		}
 		if (outside.size() < 8)
 			continue;
-		double in = median_of(inside), out = median_of(outside);
-		if (in <= 0 || (in - out) / in < params.min_contrast)
+		double in = median_of(inside), out_level = median_of(outside);
+		if (in <= 0 || (in - out_level) / in < params.min_contrast)
 			continue;
-		float mid = float(0.5 * (in + out));
+		float mid = float(0.5 * (in + out_level));
 		// Re-threshold at the square's own midpoint, within reach of the first-pass blob only.
 		cv::Mat reach;
 		cv::dilate(own, reach, cv::Mat(), cv::Point(-1, -1), std::max(1, margin - 1));
@@ -178,26 +164,117 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 		blob.box = cv::Rect(box.x + rb.x, box.y + rb.y, rb.width, rb.height);
 		blob.mask = m;
 		blob.inside = in;
-		blob.outside = out;
+		blob.outside = out_level;
 		Square sq;
 		sq.centroid = {blob.box.x + mo.m10 / mo.m00, blob.box.y + mo.m01 / mo.m00};
 		sq.area = best_area;
-		squares.push_back(sq);
-		blobs.push_back(std::move(blob));
+		out.squares.push_back(sq);
+		out.blobs.push_back(std::move(blob));
 	}
-	// Area filter against the median of what survived.
-	std::vector<float> areas;
+	return out;
+}
+
+Pass extract(const cv::Mat &intensity, const SquareParams &params, int window, double side, double max_area)
+{
+	cv::Mat labels;
+	std::vector<Component> comps = components(local_mean_mask(intensity, window), params.min_area_px, &labels);
+	return extract(intensity, params, labels, comps, side, max_area);
+}
+
+double median_square_area(const std::vector<Square> &squares, double lo, double hi)
+{
+	std::vector<float> a;
 	for (const Square &s : squares)
-		areas.push_back(float(s.area));
-	double med = median_of(areas);
+		if (s.area >= lo && s.area <= hi)
+			a.push_back(float(s.area));
+	return median_of(a);
+}
+
+} // namespace
+
+Status find_squares(const cv::Mat &intensity, const SquareParams &params,
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs)
+{
+	if (intensity.empty() || intensity.type() != CV_32F)
+		return Status::error(EINVAL, "find_squares needs a CV_32F intensity image");
+	int window = params.first_window_px > 0 ? params.first_window_px
+						: std::max(15, std::min(intensity.cols, intensity.rows) / 20);
+	cv::Mat labels;
+	cv::Mat mask = local_mean_mask(intensity, window);
+	std::vector<Component> comps = components(mask, params.min_area_px, &labels);
+	if (comps.empty()) {
+		ret_squares->clear();
+		ret_blobs->clear();
+		return {};
+	}
+	double side = std::sqrt(median_area(comps));
+	if (params.window_sides > 0) {
+		int w2 = int(std::lround(params.window_sides * side));
+		if (w2 > 0 && (w2 > window * 1.3 || w2 < window / 1.3)) {
+			mask = local_mean_mask(intensity, w2);
+			comps = components(mask, params.min_area_px, &labels);
+			if (!comps.empty())
+				side = std::sqrt(median_area(comps));
+		}
+	}
+	Pass main = extract(intensity, params, labels, comps, side, params.max_area_ratio * side * side * 1.2);
+	// Area filter against the median of what survived.
+	double med = median_square_area(main.squares, 0, INFINITY);
+	const double lo = params.min_area_ratio * med, hi = params.max_area_ratio * med;
 	std::vector<Square> keep_sq;
 	std::vector<SquareBlob> keep_blob;
-	for (size_t k = 0; k < squares.size(); k++)
-		if (squares[k].area >= params.min_area_ratio * med &&
-		    squares[k].area <= params.max_area_ratio * med) {
-			keep_sq.push_back(squares[k]);
-			keep_blob.push_back(std::move(blobs[k]));
+	std::vector<float> small, big(main.skipped_areas);
+	for (size_t k = 0; k < main.squares.size(); k++) {
+		const double a = main.squares[k].area;
+		if (a >= lo && a <= hi) {
+			keep_sq.push_back(main.squares[k]);
+			keep_blob.push_back(std::move(main.blobs[k]));
+		} else {
+			(a < lo ? small : big).push_back(float(a));
 		}
+	}
+	// A second square size in the view: projectors of different pitch (6-20 mm on the face in
+	// random booths), or one much nearer. Judged against the first size's median its squares
+	// are refused, and a window of three of the first size's sides breaks a square three times
+	// as large into a ring; so each other size with enough blobs gets its own pass, its window
+	// and area range set by its own median, and adds the squares no kept square overlaps.
+	for (std::vector<float> *cls : {&big, &small}) {
+		if (params.min_class_squares <= 0 || cls->size() < size_t(params.min_class_squares) || !(med > 0))
+			continue;
+		const double cside = std::sqrt(median_of(*cls));
+		const int cwin = std::max(3, int(std::lround(params.window_sides * cside)));
+		Pass other = extract(intensity, params, cwin, cside, params.max_area_ratio * cside * cside * 1.2);
+		// The class's own median, over its squares outside the first size's range.
+		double cmed = cls == &big ? median_square_area(other.squares, hi, INFINITY)
+					  : median_square_area(other.squares, 0, lo);
+		if (!(cmed > 0))
+			continue;
+		const double clo = std::max(params.min_area_ratio * cmed, cls == &big ? hi : 0.0);
+		const double chi = std::min(params.max_area_ratio * cmed, cls == &big ? INFINITY : lo);
+		std::vector<Square> add_sq;
+		std::vector<SquareBlob> add_blob;
+		for (size_t k = 0; k < other.squares.size(); k++) {
+			const Square &s = other.squares[k];
+			if (s.area < clo || s.area > chi)
+				continue;
+			const cv::Rect &b = other.blobs[k].box;
+			bool overlaps = false;
+			for (size_t j = 0; j < keep_sq.size() && !overlaps; j++)
+				overlaps = keep_blob[j].box.contains(cv::Point(int(s.centroid.x), int(s.centroid.y))) ||
+					   b.contains(cv::Point(int(keep_sq[j].centroid.x), int(keep_sq[j].centroid.y)));
+			if (overlaps)
+				continue;
+			add_sq.push_back(s);
+			add_blob.push_back(std::move(other.blobs[k]));
+		}
+		// Too few to be a size of the pattern: specks, merged pairs.
+		if (add_sq.size() < size_t(params.min_class_squares))
+			continue;
+		for (size_t k = 0; k < add_sq.size(); k++) {
+			keep_sq.push_back(add_sq[k]);
+			keep_blob.push_back(std::move(add_blob[k]));
+		}
+	}
 	*ret_squares = std::move(keep_sq);
 	*ret_blobs = std::move(keep_blob);
 	return {};
