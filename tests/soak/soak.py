@@ -353,9 +353,9 @@ class Soak:
                 return True
             with self.lock:
                 if not self.daemon_alive():
-                    self.daemon.wait()
+                    rc = self.daemon.wait()
                     self.start_daemon()
-                    self.note("restart: facescand (exit %s)" % self.daemon.returncode)
+                    self.note("restart: facescand (exit %s)" % rc)
             time.sleep(0.2)
         return False
 
@@ -390,9 +390,9 @@ class Soak:
         while time.time() < end:
             with self.lock:
                 if not self.daemon_alive():
-                    self.daemon.wait()
+                    rc = self.daemon.wait()
                     self.start_daemon()
-                    self.note("restart: facescand (exit %s)" % self.daemon.returncode)
+                    self.note("restart: facescand (exit %s)" % rc)
             st = self.request({"cmd": "status"}, timeout=2)
             if st and st.get("state") == "idle":
                 return True
@@ -509,7 +509,9 @@ class Soak:
                 if o and o[0] == "failed":
                     reason = re.sub(r"[0-9a-f]{12}|\d+", "N", o[1].split(";")[0])[:90]
                     r["failed"][reason] = r["failed"].get(reason, 0) + 1
-                    if o[1].startswith("reconstructing") and not glob.glob(self.spool + "/captures/*_" + sid + "/capture.json"):
+                    # Captured, then lost to the worker, the spool or the daemon's death: the capture stays.
+                    after_capture = re.match(r"(reconstructing|writing|interrupted while (reconstructing|writing))", o[1])
+                    if after_capture and not glob.glob(self.spool + "/captures/*_" + sid + "/capture.json"):
                         r["capture_not_kept"].append(sid)
                 else:
                     r["lost"].append(sid)
