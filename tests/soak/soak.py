@@ -146,6 +146,7 @@ class Soak:
             "recon_worker": worker, "min_free_mb": 1, "spool_retry_ms": 300,
             "mcu_timeout_ms": 1500, "capture_timeout_ms": self.a.capture_timeout_ms,
             "output_thumbnail": "false", "projector_settle_us": 200000,
+            "recon_memory_mb": self.a.recon_memory_mb,
         }
         with open(self.T + "/facescand.conf", "w") as f:
             for k, v in conf.items():
@@ -560,6 +561,10 @@ class Soak:
                     continue
             r["delivered"] += 1
         r["accepted"] = len(accepted)
+        # Every failure has a fault behind it: the share's faults fail nothing (spooled), the
+        # others at most the scan they strike.
+        r["failed_total"] = sum(r["failed"].values())
+        r["failing_faults"] = sum(v for k, v in self.injected.items() if not k.startswith("share_"))
         return r
 
     def report(self, r):
@@ -591,6 +596,9 @@ class Soak:
                            ("hidden_temp", "temp files left on the share (hidden)")):
             v = r[key]
             w("| %s | %d%s |" % (label, len(v), (" " + " ".join(os.path.basename(x) for x in v[:5])) if v else ""))
+        w("")
+        w("failed %d, faults that can fail a scan %d%s" % (r["failed_total"], r["failing_faults"],
+          "" if r["failed_total"] <= r["failing_faults"] else ": MORE FAILURES THAN FAULTS"))
         if self.samples:
             first, last = self.samples[0], self.samples[-1]
             w("")
@@ -639,6 +647,8 @@ def main():
     ap.add_argument("--scan-s", type=float, default=6.0, help="about how long a scan takes")
     ap.add_argument("--scan-timeout-s", type=int, default=180)
     ap.add_argument("--capture-timeout-ms", type=int, default=2000)
+    ap.add_argument("--recon-memory-mb", type=int, default=4096,
+                    help="recon_memory_mb (0 for a sanitizer build: its shadow needs terabytes)")
     ap.add_argument("--share-mb", type=int, default=0, help="share tmpfs size (0: from --scans)")
     ap.add_argument("--tmp", default=None)
     ap.add_argument("--table", default=None, help="also write the table to this file")
@@ -666,7 +676,7 @@ def main():
             f.write(table + "\n")
     bad = (r["lost"] or r["duplicated"] or r["half_written"] or r["not_reconstructed_bytes"] or
            r["failed_but_on_share"] or r["capture_not_kept"] or r["unknown_on_share"] or r["stray"] or
-           not s.flat)
+           not s.flat or r["failed_total"] > r["failing_faults"] or r["delivered"] == 0)
     return 1 if bad else 0
 
 
