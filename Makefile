@@ -3,6 +3,7 @@
 #   make demo     a complete scan on the simulated booth (the main job)
 #   make test     every test, built with AddressSanitizer + UBSan
 #   make bench    accuracy / speed / memory benchmarks → docs/benchmarks.md
+#   make soak     200 scans under injected faults, nothing lost (root; docs/daemon.md, "Soak")
 #   make          release build: build/bin/facescan, build/bin/facescand, firmware images
 #
 # Layout of the build: release objects and binaries in build/, the sanitizer build in

@@ -16,8 +16,11 @@ struct sim {
 	uint32_t count, width, height;
 	fscan_camera_render_fn render;
 	void *user;
+	/* Frames of the current arm in arrival order of their due time; a late one does not hold
+	 * back the others (cameras deliver independently). */
 	struct fscan_camera_raw_frame ready[READY_MAX];
-	unsigned head, len;
+	uint64_t due_ns[READY_MAX];
+	unsigned len;
 	uint64_t epoch_ns;
 };
 
@@ -50,11 +53,9 @@ static int sim_open(const struct fscan_camera_params *p, void **ret_ctx)
 
 static void clear_ready(struct sim *s)
 {
-	while (s->len) {
-		free(s->ready[s->head].frame.data);
-		s->head = (s->head + 1) % READY_MAX;
-		s->len--;
-	}
+	for (unsigned i = 0; i < s->len; i++)
+		free(s->ready[i].frame.data);
+	s->len = 0;
 }
 
 static void sim_close(void *ctx)
@@ -92,6 +93,9 @@ static int sim_arm(void *ctx, uint32_t first_seq, uint32_t n)
 {
 	struct sim *s = ctx;
 	clear_ready(s);
+	if ((uint64_t)n * s->count > READY_MAX)
+		return -EINVAL;
+	const uint64_t armed_ns = mono_ns();
 	for (uint32_t t = 0; t < n; t++) {
 		for (uint32_t c = 0; c < s->count; c++) {
 			struct fscan_camera_raw_frame f;
@@ -109,13 +113,18 @@ static int sim_arm(void *ctx, uint32_t first_seq, uint32_t n)
 			}
 			int r = s->render(s->user, c, t, f.frame.data, s->width, s->height, f.frame.stride,
 					  &f.frame.timestamp_ns);
+			if (r == FSCAN_CAMERA_RENDER_DROPPED) {
+				free(f.frame.data); /* the sensor never sends it */
+				continue;
+			}
 			if (r < 0) {
 				/* A render failure is that camera's failed frame, as a sensor error. */
 				free(f.frame.data);
 				f.frame.data = NULL;
 				f.status = -EIO;
 			}
-			s->ready[(s->head + s->len) % READY_MAX] = f;
+			s->due_ns[s->len] = armed_ns + (r > 0 ? (uint64_t)r * 1000000u : 0);
+			s->ready[s->len] = f;
 			s->len++;
 		}
 	}
@@ -125,16 +134,30 @@ static int sim_arm(void *ctx, uint32_t first_seq, uint32_t n)
 static int sim_next_frame(void *ctx, int timeout_ms, struct fscan_camera_raw_frame *ret)
 {
 	struct sim *s = ctx;
-	if (!s->len) {
+	const uint64_t now = mono_ns();
+	unsigned best = s->len;
+	for (unsigned i = 0; i < s->len; i++)
+		if (best == s->len || s->due_ns[i] < s->due_ns[best])
+			best = i;
+	if (best == s->len || s->due_ns[best] > now + (uint64_t)(timeout_ms > 0 ? timeout_ms : 0) * 1000000u) {
+		/* Nothing arrives within the timeout: wait it out, as a sensor would. */
 		if (timeout_ms > 0) {
 			struct timespec d = {timeout_ms / 1000, (long)(timeout_ms % 1000) * 1000000L};
 			nanosleep(&d, NULL);
 		}
 		return -ETIMEDOUT;
 	}
-	*ret = s->ready[s->head];
-	s->head = (s->head + 1) % READY_MAX;
+	if (s->due_ns[best] > now) {
+		uint64_t wait = s->due_ns[best] - now;
+		struct timespec d = {(time_t)(wait / 1000000000u), (long)(wait % 1000000000u)};
+		nanosleep(&d, NULL);
+	}
+	*ret = s->ready[best];
 	s->len--;
+	for (unsigned i = best; i < s->len; i++) {
+		s->ready[i] = s->ready[i + 1];
+		s->due_ns[i] = s->due_ns[i + 1];
+	}
 	return 0;
 }
 

@@ -117,6 +117,12 @@ public:
 	virtual ~Reconstructor() = default;
 	virtual std::string backend_name() const = 0;
 	virtual Status run(const Capture &capture, ReconOutput *ret_output) = 0;
+	/// The scan named scan_name is committed to the spool: what run() kept of its capture for an
+	/// offline retry may go (a failed or interrupted scan keeps it).
+	virtual void release(const std::string &scan_name)
+	{
+		(void)scan_name;
+	}
 };
 
 /// Checks that a capture holds one pattern and (if any) one texture frame per camera, all from

@@ -164,6 +164,9 @@ const std::vector<Key> &keys()
 		 str_of(&Config::sim_scene)},
 		{"sim_scale_percent", "simulated camera resolution in % of the rig's (1600x1200 at 100)",
 		 int_in(&Config::sim_scale_percent, 10, 400), int_of(&Config::sim_scale_percent)},
+		{"sim_camera_faults",
+		 "fault tests only: a file read at each simulated scan, 'drop CAMERA' or 'delay CAMERA MS'; empty: none",
+		 path_in(&Config::sim_camera_faults, true), str_of(&Config::sim_camera_faults)},
 		{"serial_device", "tty of the trigger MCU, or 'fake' for the in-process MCU",
 		 [](Config &c, const std::string &v) -> std::string {
 			 if (v != "fake" && (v.empty() || v[0] != '/'))
@@ -329,6 +332,8 @@ Status parse_config(const std::string &text, const std::string &name, Config *re
 		if (!why.empty())
 			return fail(key + ": " + why);
 	}
+	if (!c.sim_camera_faults.empty() && c.camera_backend != "simulated")
+		return Status::error(EINVAL, name + ": sim_camera_faults needs camera_backend = simulated");
 	if (c.camera_backend == "replay" && c.replay_dir.empty())
 		return Status::error(EINVAL, name + ": camera_backend = replay needs replay_dir");
 	if (c.button_source == ButtonSource::gpio &&

@@ -24,6 +24,7 @@ struct Config {
 	std::string replay_dir;                  // capture set the replay backend plays back
 	std::string sim_scene = "default";       // scene the simulated backend renders
 	int sim_scale_percent = 100;             // simulated camera resolution, % of the rig's
+	std::string sim_camera_faults;           // fault tests only: a file of camera faults, read per simulated scan
 	std::string serial_device = "/dev/ttyACM0"; // tty of the MCU, or "fake" (in-process MCU)
 	int serial_baud = 115200;
 	ButtonSource button_source = ButtonSource::mcu;

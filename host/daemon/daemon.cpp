@@ -733,9 +733,11 @@ struct Daemon::Impl {
 		files.push_back({base + ".json", meta.dump(1) + "\n"});
 		s = spool.put(base, id, rec["patient_id"], files, cfg.test_delay_write_ms);
 		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "spool: " + s.message(), false, {{"stage", "writing"}}});
+			post({Msg::Kind::failed, 0, "spool: " + s.message() + capture_kept(base), false,
+			      {{"stage", "writing"}}});
 			return;
 		}
+		be.recon->release(base);
 		std::vector<Delivered> delivered;
 		Status d = spool.deliver(&delivered, cfg.test_delay_deliver_ms);
 		bool landed = false;
@@ -749,6 +751,16 @@ struct Daemon::Impl {
 		if (!landed)
 			data["spool_reason"] = d.ok() ? "an older spooled scan is ahead" : d.message();
 		post({Msg::Kind::finished, ms_since(t2), "", false, data});
+	}
+
+	// "; capture kept in DIR" when a capture set of the scan is in <spool_dir>/captures, else "".
+	std::string capture_kept(const std::string &base) const
+	{
+		const std::string dir = cfg.spool_dir + "/captures/" + base;
+		struct stat st;
+		if (base.empty() || stat(dir.c_str(), &st) < 0 || !S_ISDIR(st.st_mode))
+			return "";
+		return "; capture kept in " + dir + " for an offline retry";
 	}
 
 	void keep_capture(const std::string &base, const Capture &cap)
@@ -1122,11 +1134,12 @@ Status Daemon::start()
 				log(LOG_INFO, "scan %s: delivered before the daemon stopped", id.c_str());
 				cur["state"] = "delivered";
 			} else {
-				log(LOG_ERR, "scan %s: interrupted while %s (daemon stopped); reported failed", id.c_str(),
-				    st.c_str());
+				const std::string kept = d.capture_kept(base);
+				log(LOG_ERR, "scan %s: interrupted while %s (daemon stopped); reported failed%s", id.c_str(),
+				    st.c_str(), kept.c_str());
 				cur["state"] = "failed";
 				cur["failed_stage"] = st;
-				cur["error"] = "interrupted while " + st + ": the daemon stopped; scan again";
+				cur["error"] = "interrupted while " + st + ": the daemon stopped; scan again" + kept;
 			}
 			failed.erase(std::remove(failed.begin(), failed.end(), id), failed.end());
 			d.last = cur;

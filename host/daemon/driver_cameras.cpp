@@ -157,7 +157,11 @@ Status DriverCameras::collect(const TriggerReport &report, int timeout_ms, Captu
 			for (int i = 0; i < count_; i++) {
 				int st = fscan_camera_frame_status(cam_, static_cast<uint32_t>(i));
 				if (st < 0)
-					which += " camera " + std::to_string(i) + ": " + std::strerror(-st) + ";";
+					which += std::string(which.empty() ? "" : "; ") + "camera " + std::to_string(i) + ": " +
+						 (st == -ETIMEDOUT ? "no frame"
+						  : st == -EIO    ? "failed frame"
+						  : st == -EXDEV  ? "frame of another trigger or too late"
+								  : std::strerror(-st));
 			}
 			fscan_camera_disarm(cam_);
 			std::string what = rc == -EXDEV ? "frames from different triggers or too far apart"

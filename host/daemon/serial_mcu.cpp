@@ -22,6 +22,18 @@ SerialMcu::~SerialMcu()
 	fscan_serial_destroy(link_);
 }
 
+// Words for the operator, not errno's ("Transport endpoint is not connected").
+static std::string link_words(int rc, int timeout_ms)
+{
+	if (rc == -ENOTCONN)
+		return "link lost (MCU unplugged, off or restarting)";
+	if (rc == -EIO)
+		return "link lost (I/O error)";
+	if (rc == -ETIMEDOUT)
+		return "no answer within " + std::to_string(timeout_ms) + " ms";
+	return std::strerror(-rc);
+}
+
 Status SerialMcu::link_error(int rc, const std::string &what)
 {
 	if (rc == -ENOTCONN || rc == -EIO) {
@@ -29,7 +41,7 @@ Status SerialMcu::link_error(int rc, const std::string &what)
 		link_ = nullptr;
 	}
 	std::string why = rc == -EREMOTEIO ? std::string("refused: ") + fs_err_name(fscan_serial_last_nack(link_))
-					   : std::strerror(-rc);
+					   : link_words(rc, timeout_ms_);
 	return Status::error(-rc, "MCU " + what + ": " + why);
 }
 
@@ -230,7 +242,7 @@ Status SerialMcu::poll_events(std::vector<McuEvent> *ret_events)
 		if (rc < 0) {
 			fscan_serial_destroy(link_);
 			link_ = nullptr;
-			ret_events->push_back({McuEvent::Type::disconnected, std::strerror(-rc)});
+			ret_events->push_back({McuEvent::Type::disconnected, link_words(rc, timeout_ms_)});
 			return Status();
 		}
 		switch (ev.type) {

@@ -212,7 +212,15 @@ Status WorkerReconstructor::run(const Capture &capture, ReconOutput *ret_output)
 	// The input: the set the cameras left on disk, or the frames written as one.
 	std::string input = capture.source_dir;
 	bool wrote_set = false;
-	if (input.empty()) {
+	const std::string scratch = p_.spool_dir + "/work/";
+	if (!input.empty() && input.compare(0, scratch.size(), scratch) == 0) {
+		// The cameras' scratch set (the simulated booth's) is overwritten by the next scan:
+		// it becomes this scan's before the worker runs, so a failure or a kill keeps it.
+		if (rename(input.c_str(), kept.c_str()) < 0)
+			return errno_status(errno, "rename " + input + " to " + kept);
+		input = kept;
+		wrote_set = true;
+	} else if (input.empty()) {
 		CaptureSet set;
 		s = read_calibration(p_.calibration_file, &set.calibration);
 		for (const Frame &f : capture.frames) {
@@ -324,14 +332,19 @@ Status WorkerReconstructor::run(const Capture &capture, ReconOutput *ret_output)
 	out.faces = static_cast<long>(mesh.triangles.size());
 	if (read_calibration(input + "/calibration.yaml", &cal).ok())
 		add_simulated_accuracy(input, mesh, cal.cameras, &out);
-	if (wrote_set && !p_.keep_captures) {
-		// Delivered through the spool; the daemon's keep_captures decides about raw sets.
-		for (const std::string &n : list_dir(kept))
-			unlink((kept + "/" + n).c_str());
-		rmdir(kept.c_str());
-	}
 	*ret_output = std::move(out);
 	return Status();
+}
+
+void WorkerReconstructor::release(const std::string &scan_name)
+{
+	if (p_.keep_captures || scan_name.empty() || scan_name.find('/') != std::string::npos || scan_name[0] == '.')
+		return;
+	// Committed to the spool; the daemon's keep_captures decides about raw sets.
+	const std::string kept = p_.spool_dir + "/captures/" + scan_name;
+	for (const std::string &n : list_dir(kept))
+		unlink((kept + "/" + n).c_str());
+	rmdir(kept.c_str());
 }
 
 } // namespace facescan::daemon

@@ -35,7 +35,11 @@ public:
 	/// -ETIMEDOUT killed at its deadline, -ENOMEM out of memory under its limit, -ECHILD
 	/// crashed (a signal), -EIO failed with its own message, or the capture's write error.
 	/// Every failure message says where the capture set was kept.
+	/// The set the worker ran on stays in <spool_dir>/captures/<scan_name> until release(): a
+	/// daemon killed before the scan is spooled leaves it there for an offline retry.
 	Status run(const Capture &capture, ReconOutput *ret_output) override;
+	/// Removes <spool_dir>/captures/<scan_name> (what run() kept), unless keep_captures.
+	void release(const std::string &scan_name) override;
 
 private:
 	WorkerParams p_;

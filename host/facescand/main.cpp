@@ -102,7 +102,13 @@ int main(int argc, char **argv)
 		return 0;
 	}
 	Backends backends;
-	facescan::Status s = make_backends(config, facescan::facescand::make_sim_booth, &backends);
+	const std::string faults = config.sim_camera_faults;
+	facescan::Status s = make_backends(
+		config,
+		[faults](const std::string &scene, double scale, std::unique_ptr<facescan::daemon::SimulatedBooth> *ret) {
+			return facescan::facescand::make_sim_booth(scene, scale, faults, ret);
+		},
+		&backends);
 	if (!s.ok()) {
 		log(LOG_ERR, "refusing to start: %s", s.message().c_str());
 		return 1;

@@ -78,6 +78,9 @@ static void test_refused_lines(void **)
 	expect_refused("share_dir = /x\x01y\n", "t.conf:1: control character");
 	expect_refused("booth_patient_id = ../etc\n", "booth_patient_id: patient id contains a path separator");
 	expect_refused("camera_backend = replay\n", "needs replay_dir");
+	// The soak's camera fault knob reaches only the simulated sensor.
+	expect_refused("camera_backend = fake\nsim_camera_faults = /tmp/f\n", "sim_camera_faults needs camera_backend = simulated");
+	expect_refused("camera_backend = simulated\nsim_camera_faults = f\n", "sim_camera_faults: 'f' is not an absolute path");
 	expect_refused("button_source = gpio\n", "needs gpio_button_line");
 	expect_refused("share_dir = /a\nspool_dir = /a\n", "must differ");
 }

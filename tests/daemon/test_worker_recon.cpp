@@ -204,6 +204,49 @@ static void test_worker_failures_keep_the_capture(void **)
 	expect_failure(p, c, -ENOENT, "mesh.drc", kept);
 }
 
+// The simulated booth leaves its set in the daemon's scratch (<spool>/work/), where the next scan
+// overwrites it: the worker makes it the scan's (<spool>/captures/<scan>) before it runs, so a
+// crash, or the daemon killed mid-reconstruction (found by the soak), keeps it; release()
+// removes it once the scan is committed, unless keep_captures.
+static void test_scratch_set_becomes_the_scans(void **)
+{
+	TmpDir d;
+	WorkerParams p;
+	p.spool_dir = d.path + "/spool";
+	mkdir(p.spool_dir.c_str(), 0750);
+	mkdir((p.spool_dir + "/work").c_str(), 0750);
+	p.memory_mb = 0;
+	const std::string outside = write_small_set(d);
+	const std::string scratch = p.spool_dir + "/work/simulated-capture";
+	assert_int_equal(std::system(("cp -r '" + outside + "' '" + scratch + "'").c_str()), 0);
+	Capture c;
+	c.source_dir = scratch;
+	c.scan_name = "20260101T000000Z_abd";
+	const std::string kept = p.spool_dir + "/captures/" + c.scan_name;
+	// A worker that is killed while it runs (as the daemon around it would be).
+	p.program = script(d, "killed", "test -f \"$2/calibration.yaml\" || exit 3; kill -KILL $$");
+	expect_failure(p, c, -ECHILD, "crashed (signal 9", kept);
+	struct stat st;
+	assert_int_equal(stat((kept + "/calibration.yaml").c_str(), &st), 0);
+	assert_int_equal(stat((kept + "/cam1.png").c_str(), &st), 0);
+	assert_int_not_equal(stat(scratch.c_str(), &st), 0); // moved, not copied
+
+	WorkerReconstructor w(p);
+	w.release("../work"); // never anything outside captures/
+	assert_int_equal(stat(p.spool_dir.c_str(), &st), 0);
+	w.release(c.scan_name);
+	assert_int_not_equal(stat(kept.c_str(), &st), 0);
+
+	// keep_captures: release keeps it; a set outside the scratch is never moved.
+	p.keep_captures = true;
+	c.source_dir = outside;
+	expect_failure(p, c, -ECHILD, "crashed (signal 9", kept);
+	assert_int_equal(stat((outside + "/calibration.yaml").c_str(), &st), 0);
+	WorkerReconstructor keeping(p);
+	keeping.release(c.scan_name);
+	assert_int_equal(stat((kept + "/calibration.yaml").c_str(), &st), 0);
+}
+
 // Frames from real cameras are written as a whole set (with the booth's calibration) first.
 static void test_frames_are_written_as_a_set(void **)
 {
@@ -380,6 +423,7 @@ int main()
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_child_limits),
 		cmocka_unit_test(test_worker_failures_keep_the_capture),
+		cmocka_unit_test(test_scratch_set_becomes_the_scans),
 		cmocka_unit_test(test_frames_are_written_as_a_set),
 		cmocka_unit_test(test_daemon_survives_worker_crash),
 		cmocka_unit_test(test_real_worker_on_a_simulated_set),

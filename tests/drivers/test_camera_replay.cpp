@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <chrono>
 #include <cstring>
 #include <setjmp.h>
 #include <string>
@@ -161,6 +162,8 @@ void test_replay_bad_sources(void **)
 struct Renderer {
 	int calls = 0;
 	int fail_camera = -1;
+	int late_camera = -1, late_ms = 0; // its frames arrive late_ms after the arm
+	int dropped_camera = -1;           // its frames never arrive
 };
 
 int render(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb, uint32_t width,
@@ -173,7 +176,9 @@ int render(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb, ui
 	for (uint32_t y = 0; y < height; y++)
 		std::memset(rgb + y * stride, (int)(camera * 16 + trigger_index), width * 3);
 	(void)ret_timestamp_ns; // keep the backend's synthetic time
-	return 0;
+	if ((int)camera == r->dropped_camera)
+		return FSCAN_CAMERA_RENDER_DROPPED;
+	return (int)camera == r->late_camera ? r->late_ms : 0;
 }
 
 void test_sim_renders_each_camera_and_trigger(void **)
@@ -214,6 +219,64 @@ void test_sim_renders_each_camera_and_trigger(void **)
 	assert_int_equal(fscan_camera_create(&fscan_camera_sim_ops, &p, &cam), -EINVAL);
 }
 
+long ms_since(std::chrono::steady_clock::time_point t0)
+{
+	return (long)std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The soak's camera faults at the sensor: a late frame arrives late (in time: collected; too
+// late: that camera times out) without holding back the other cameras' frames, and a dropped
+// frame never arrives.
+void test_sim_late_and_dropped_frames(void **)
+{
+	Renderer r;
+	fscan_camera_params p{};
+	p.count = 4;
+	p.width = 16;
+	p.height = 12;
+	p.render = render;
+	p.render_user = &r;
+	fscan_camera *cam = nullptr;
+	assert_int_equal(fscan_camera_create(&fscan_camera_sim_ops, &p, &cam), 0);
+
+	r.late_camera = 1;
+	r.late_ms = 150;
+	auto t0 = std::chrono::steady_clock::now();
+	assert_int_equal(fscan_camera_arm(cam, 0, 2), 0);
+	for (uint32_t t = 0; t < 2; t++) {
+		fscan_frame_set *set = nullptr;
+		assert_int_equal(fscan_camera_collect(cam, 1000, &set), 0);
+		assert_int_equal(set->frames[1].data[0], 16 + t);
+		fscan_frame_set_free(set);
+	}
+	long ms = ms_since(t0);
+	printf("late frames (150 ms) collected after %ld ms\n", ms);
+	assert_true(ms >= 140 && ms < 900);
+
+	r.late_ms = 400;
+	assert_int_equal(fscan_camera_arm(cam, 2, 1), 0);
+	fscan_frame_set *set = nullptr;
+	assert_int_equal(fscan_camera_collect(cam, 100, &set), -ETIMEDOUT);
+	assert_int_equal(fscan_camera_frame_status(cam, 1), -ETIMEDOUT);
+	assert_int_equal(fscan_camera_frame_status(cam, 0), 0);
+
+	r.late_camera = -1;
+	r.dropped_camera = 3;
+	assert_int_equal(fscan_camera_arm(cam, 3, 2), 0);
+	t0 = std::chrono::steady_clock::now();
+	assert_int_equal(fscan_camera_collect(cam, 200, &set), -ETIMEDOUT);
+	assert_true(ms_since(t0) >= 190);
+	assert_int_equal(fscan_camera_frame_status(cam, 3), -ETIMEDOUT);
+	assert_int_equal(fscan_camera_frame_status(cam, 2), 0);
+
+	// Back to healthy: the next arm delivers at once.
+	r.dropped_camera = -1;
+	assert_int_equal(fscan_camera_arm(cam, 5, 1), 0);
+	assert_int_equal(fscan_camera_collect(cam, 100, &set), 0);
+	fscan_frame_set_free(set);
+	fscan_camera_destroy(cam);
+}
+
 } // namespace
 
 int main()
@@ -223,6 +286,7 @@ int main()
 		cmocka_unit_test(test_replay_without_textures),
 		cmocka_unit_test(test_replay_bad_sources),
 		cmocka_unit_test(test_sim_renders_each_camera_and_trigger),
+		cmocka_unit_test(test_sim_late_and_dropped_frames),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

@@ -111,6 +111,7 @@ sleep 0.2             # the sequence runs >= 500 ms: the cable goes in the middl
 kill -9 "$FWPID"; wait "$FWPID" 2>/dev/null; FWPID=
 check "error after the MCU vanished mid-scan" wait_state error 40
 check "last reports the failure" sh -c "\"$bin/facescan\" last --json | grep -q '\"failed_stage\": \"capturing\"'"
+check "the failure in words, not errno's" sh -c "\"$bin/facescan\" last --json | grep -q 'MCU.*link lost' && ! grep -q 'Transport endpoint' '$T/daemon.log'"
 check "nothing on the share for UNPLUG" [ "$(visible_files UNPLUG)" -eq 0 ]
 start_fw
 check "recovered when the MCU is back" wait_state idle 60

@@ -1,7 +1,8 @@
 /*
  * facescan-fw-native, the firmware on the simulated board behind a pty (the daemon's
  * fallback where QEMU is missing): a host opens the pty, says hello, sets timing, fires and
- * gets an exact report; SIGUSR1 presses the button; SIGTERM ends it and removes its link.
+ * gets an exact report; SIGUSR1 presses the button; SIGUSR2 resets it; SIGTERM ends it and
+ * removes its link.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -170,6 +171,45 @@ static void test_debug_button_when_armed(void **state)
 	assert_int_equal(rep.result, FS_REPORT_DONE);
 }
 
+/* SIGUSR2 is the reset pin mid-sequence (the soak's MCU reset): the lines go dark at once,
+ * the core boots again (EVT_BOOT, cause pin) and serves the next command. */
+static void test_sigusr2_resets_mid_sequence(void **state)
+{
+	(void)state;
+	struct fs_frame f, r;
+	struct fs_timing t;
+	fs_timing_default(&t);
+	t.proj_settle_us = 400000;
+	fs_frame_init(&f, FS_CMD_SET_TIMING, 0);
+	fs_timing_put(&f, &t);
+	assert_int_equal(fwc_transact(&client, &f, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_ACK);
+	assert_int_equal(fwc_cmd(&client, FS_CMD_FIRE, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_ACK);
+	usleep(100000); /* projectors on, shutters not yet */
+	assert_int_equal(kill(pid, SIGUSR2), 0);
+	/* The power-on EVT_BOOT may still wait unread in the pty: the reset's is the next one. */
+	struct fs_boot b = {FS_RESET_POWER, 0};
+	for (int i = 0; i < 2 && b.reset_cause != FS_RESET_PIN; i++) {
+		assert_int_equal(fwc_wait_event(&client, FS_EVT_BOOT, &f, TIMEOUT_MS), 1);
+		assert_int_equal(fs_boot_get(&f, &b), 0);
+	}
+	assert_int_equal(b.reset_cause, FS_RESET_PIN);
+	assert_int_equal(fwc_cmd(&client, FS_CMD_STATUS, &r, TIMEOUT_MS), 1);
+	struct fs_status st;
+	assert_int_equal(fs_status_get(&r, &st), 0);
+	assert_int_equal(st.lines, 0);
+	assert_int_equal(st.state, FS_STATE_IDLE);
+	/* The reset forgot the timing: the default again, and a fire completes. */
+	assert_int_equal(fwc_cmd(&client, FS_CMD_FIRE, &r, TIMEOUT_MS), 1);
+	assert_int_equal(r.type, FS_RSP_ACK);
+	assert_int_equal(fwc_wait_event(&client, FS_EVT_REPORT, &f, TIMEOUT_MS), 1);
+	struct fs_report rep;
+	assert_int_equal(fs_report_get(&f, &rep), 0);
+	assert_int_equal(rep.result, FS_REPORT_DONE);
+	assert_int_equal(rep.tick[FS_STEP_SHUT1_RISE] - rep.tick[FS_STEP_PROJ_ON], 20000);
+}
+
 static void test_sigterm_exits_and_unlinks(void **state)
 {
 	(void)state;
@@ -191,6 +231,7 @@ int main(void)
 		cmocka_unit_test(test_fire_exact_report),
 		cmocka_unit_test(test_sigusr1_presses_button),
 		cmocka_unit_test(test_debug_button_when_armed),
+		cmocka_unit_test(test_sigusr2_resets_mid_sequence),
 		cmocka_unit_test(test_sigterm_exits_and_unlinks),
 	};
 	return cmocka_run_group_tests(tests, start, stop);

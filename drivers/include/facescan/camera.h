@@ -62,7 +62,11 @@ void fscan_frame_set_free(struct fscan_frame_set *set); /* accepts NULL */
 /* The render callback the simulated backend draws frames with (the booth simulator, or any
  * test double). Fills `rgb` (width x height, `stride` bytes per row) with what camera `camera`
  * sees at trigger `trigger_index` of the current arm (0 = first), and may set *ret_timestamp_ns
- * (it is preset to a synthetic time). Returns 0 or -errno. */
+ * (it is preset to a synthetic time). Returns 0 (the frame arrives at once), a count of
+ * milliseconds > 0 (it arrives that long after the arm: a slow sensor or link),
+ * FSCAN_CAMERA_RENDER_DROPPED (it never arrives: collect times out on that camera), or -errno
+ * (the camera reports a failed frame). */
+#define FSCAN_CAMERA_RENDER_DROPPED 0x7fffffff
 typedef int (*fscan_camera_render_fn)(void *user, uint32_t camera, uint32_t trigger_index,
 				      uint8_t *rgb, uint32_t width, uint32_t height, uint32_t stride,
 				      uint64_t *ret_timestamp_ns);

@@ -6,8 +6,9 @@
  *   facescan-fw-native [--link PATH] [--trace]
  *
  * Prints the pty path on stdout (and symlinks PATH to it). SIGUSR1 presses the booth button
- * for 100 ms. FS_CMD_DEBUG_BUTTON is accepted (this is a simulated board). SIGINT/SIGTERM
- * end it.
+ * for 100 ms; SIGUSR2 pulls the reset pin (lines low, the core starts again and sends
+ * EVT_BOOT, reset cause pin), as a brown-out or a reset mid-sequence would. FS_CMD_DEBUG_BUTTON
+ * is accepted (this is a simulated board). SIGINT/SIGTERM end it.
  */
 #define _GNU_SOURCE
 #include <errno.h>
@@ -27,6 +28,7 @@
 
 static volatile sig_atomic_t stop_requested;
 static volatile sig_atomic_t button_requests;
+static volatile sig_atomic_t reset_requests;
 
 static void on_stop(int sig)
 {
@@ -38,6 +40,12 @@ static void on_button(int sig)
 {
 	(void)sig;
 	button_requests++;
+}
+
+static void on_reset(int sig)
+{
+	(void)sig;
+	reset_requests++;
 }
 
 static uint64_t mono_us(void)
@@ -67,7 +75,7 @@ static int usage(FILE *out, int code)
 		     "Runs the trigger firmware on a simulated board behind a pseudo-terminal.\n"
 		     "  --link PATH  also make PATH a symlink to the pty\n"
 		     "  --trace      print every line change to stderr\n"
-		     "SIGUSR1 presses the booth button.\n");
+		     "SIGUSR1 presses the booth button; SIGUSR2 resets the MCU (reset pin).\n");
 	return code;
 }
 
@@ -121,6 +129,8 @@ int main(int argc, char **argv)
 	sigaction(SIGTERM, &sa, NULL);
 	sa.sa_handler = on_button;
 	sigaction(SIGUSR1, &sa, NULL);
+	sa.sa_handler = on_reset;
+	sigaction(SIGUSR2, &sa, NULL);
 
 	native_set_uart_sink(to_master, &master);
 	native_set_debug_inputs(true);
@@ -143,6 +153,13 @@ int main(int argc, char **argv)
 		uint64_t now = mono_us() - start;
 		if (now > native_now())
 			native_advance(now - native_now());
+		if (reset_requests) {
+			reset_requests = 0;
+			button_until = 0;
+			native_reset(FS_RESET_PIN);
+			fw_core_init();
+			edges_seen = 0;
+		}
 		if (button_requests) {
 			button_requests = 0;
 			button_until = native_now() + 100000u;
