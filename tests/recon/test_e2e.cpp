@@ -107,7 +107,8 @@ static void test_default_scene(void **)
 
 	// One pair's dense stage fails (here: camera 3's calibration turned 80 degrees about its
 	// vertical axis, so pair 2-3 converges past what the rectification takes): the scan keeps the
-	// other pairs' surface and the report names the pair and the reason.
+	// other pairs' surface and the report names the pair and the reason. Measured: 0.185 mm /
+	// 89.7 %, 112k vertices (the completeness is counted by the true cameras, which still see it).
 	CaptureSet turned = set;
 	{
 		CameraModel &c3 = turned.calibration.cameras[3];
@@ -128,6 +129,8 @@ static void test_default_scene(void **)
 	assert_int_equal(turned_report.pairs[2].dense.points, 0);
 	assert_true(turned_report.pairs[0].dense_error.empty() && turned_report.pairs[1].dense_error.empty());
 	assert_true(rt.face_vertices > 50000);
+	assert_true(rt.rms_mm < 0.3);
+	assert_true(rt.completeness >= 0.7);
 	assert_non_null(std::strstr(recon::report_json(turned_report).c_str(), "converge"));
 
 	// No code match survives triangulation (on random booth 301: every pair's code words disagree):
