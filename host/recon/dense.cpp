@@ -485,12 +485,31 @@ Status rectify_pair(const CameraModel &a, const CameraModel &b, double scale, Re
 	const cv::Vec3d T = b.T - R * a.T;
 	if (cv::norm(T) < 1e-6)
 		return Status::error(-EINVAL, "dense: the pair's cameras are at the same place");
-	cv::Mat R1, R2, P1, P2, Q;
-	cv::stereoRectify(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(b.K), cv::Mat(b.dist), a.size, cv::Mat(R),
-			  cv::Mat(T), R1, R2, P1, P2, Q, 0);
+	// stereoRectify's rotations (half of the relative rotation each, then the smallest turn of the
+	// baseline onto an axis), but always onto -x in b's half-turned frame, i.e. b to the right of a:
+	// stereoRectify turns it onto y when the baseline is more vertical than horizontal in that
+	// frame (random booth 204, pair 2-3: b 45 degrees down and to the right, |t_y| > |t_x|), and
+	// the rows then run across the baseline. For pairs it rectifies along x this is its own result.
+	cv::Vec3d om;
+	cv::Rodrigues(cv::Mat(R), om);
+	cv::Matx33d r_r;
+	cv::Rodrigues(om * -0.5, r_r);
+	const cv::Vec3d t = r_r * T;
+	const cv::Vec3d target(-1, 0, 0);
+	cv::Vec3d w = t.cross(target);
+	const double nw = cv::norm(w), angle = std::acos(std::clamp(t.dot(target) / cv::norm(t), -1.0, 1.0));
+	if (nw > 1e-12 * cv::norm(t))
+		w *= angle / nw;
+	else if (angle > 1.0)
+		w = cv::Vec3d(0, 0, CV_PI); // b exactly to the left: half a turn about the optical axis
+	else
+		w = cv::Vec3d(0, 0, 0);
+	cv::Matx33d wR;
+	cv::Rodrigues(w, wR);
 	RectifiedPair rp;
-	rp.R1 = cv::Matx33d(R1);
-	rp.R2 = cv::Matx33d(R2);
+	rp.R1 = wR * r_r.t();
+	rp.R2 = wR * r_r;
+	const cv::Mat R1(rp.R1), R2(rp.R2);
 	rp.size = cv::Size(int(std::lround(a.size.width * scale)), int(std::lround(a.size.height * scale)));
 	rp.f = scale * (a.K(0, 0) + a.K(1, 1) + b.K(0, 0) + b.K(1, 1)) / 4;
 	// Each camera's optical axis lands at the centre of its rectified image: converging cameras

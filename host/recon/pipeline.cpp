@@ -249,9 +249,13 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 				ret_debug->images.push_back({name + "_disparity", colour_map(dbg[p].disparity, lo, hi)});
 				ret_debug->clouds.push_back({name + "_dense", clouds[p].points, clouds[p].confidence});
 			}
-			if (!s.ok())
-				return Status::error(s.code(), "pair " + std::to_string(p) + "-" +
-								       std::to_string(p + 1) + ": " + s.message());
+			// One pair's failure costs its view, not the scan: the other pairs' clouds still
+			// make a surface (the report says which pair is missing and why).
+			if (!s.ok()) {
+				report.pairs[p].dense_error = s.message();
+				report.pairs[p].dense.points = 0;
+				clouds[p] = DenseCloud{};
+			}
 		}
 		{
 			std::vector<std::vector<cv::Point3f>> points(clouds.size());
@@ -343,7 +347,8 @@ std::string report_json(const ReconReport &r)
 				   {"rim", p.dense.rim},
 				   {"islands", p.dense.islands},
 				   {"points", p.dense.points},
-				   {"median_seed_spacing_px", p.dense.median_spacing_px}}}});
+				   {"median_seed_spacing_px", p.dense.median_spacing_px},
+				   {"error", p.dense_error}}}});
 	j["pairs"] = pairs;
 	{
 		const BundleStats &b = r.bundle;

@@ -71,6 +71,8 @@ struct PairReport {
 	TriangulateStats triangulate;
 	MeshingStats meshing;
 	DenseStats dense;
+	/// Why the pair's dense stage failed (empty: it did not). The scan goes on without its cloud.
+	std::string dense_error;
 };
 
 struct ReconReport {

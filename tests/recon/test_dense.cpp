@@ -42,6 +42,48 @@ void rectification_reprojects_exactly(void **)
 	assert_int_equal(rectify_pair(cams[0], cams[0], 0.5, &rp).code(), -EINVAL); // no baseline
 }
 
+// A camera at `centre` looking at the origin, rolled by `roll_deg` about its optical axis.
+CameraModel camera_looking_from(const cv::Vec3d &centre, double roll_deg)
+{
+	CameraModel cam = synth::camera_at(0);
+	const cv::Vec3d z = -centre * (1.0 / cv::norm(centre));
+	cv::Vec3d x = cv::Vec3d(0, 1, 0).cross(z);
+	x *= 1.0 / cv::norm(x);
+	const cv::Vec3d y = z.cross(x);
+	const double r = roll_deg * CV_PI / 180;
+	const cv::Vec3d xr = std::cos(r) * x + std::sin(r) * y, yr = -std::sin(r) * x + std::cos(r) * y;
+	cam.R = cv::Matx33d(xr[0], xr[1], xr[2], yr[0], yr[1], yr[2], z[0], z[1], z[2]);
+	cam.T = -(cam.R * centre);
+	return cam;
+}
+
+// Random booth 204's pair 2-3: b 45 degrees down and to the right of a, converging by 29 degrees,
+// both cameras rolled. stereoRectify put that baseline on the y axis (the pair failed); it must
+// rectify along x, b to the right, and reproject exactly. So must a pair whose b is to the left.
+void rectification_keeps_diagonal_baselines_on_x(void **)
+{
+	const CameraModel a = camera_looking_from(cv::Vec3d(-40, 90, 540), 8);
+	const CameraModel b = camera_looking_from(cv::Vec3d(110, -90, 500), -10); // y up: b is lower
+	for (int flip = 0; flip < 2; ++flip) {
+		const CameraModel &ca = flip ? b : a, &cb = flip ? a : b;
+		RectifiedPair rp;
+		const Status s = rectify_pair(ca, cb, 0.5, &rp);
+		if (!s.ok())
+			std::printf("rectify_pair: %s\n", s.message().c_str());
+		assert_true(s.ok());
+		assert_true(rp.baseline > 0); // b to the right: disparities positive
+		const cv::Vec3d cb_rect = rp.R1 * (ca.R * (cb.centre() - ca.centre()));
+		assert_true(std::fabs(cb_rect[1]) + std::fabs(cb_rect[2]) < 1e-6 * cv::norm(cb_rect));
+		for (const cv::Point3d &w : {cv::Point3d(0, 0, 60), cv::Point3d(-40, 50, 20), cv::Point3d(35, -60, 40)}) {
+			const cv::Point2d ra = rectify_points(rp, ca, 0, {project_points(ca, {w})[0]})[0];
+			const cv::Point2d rb = rectify_points(rp, cb, 1, {project_points(cb, {w})[0]})[0];
+			assert_true(std::fabs(ra.y - rb.y) < 1e-6);
+			assert_true(ra.x > 0 && ra.x < rp.size.width && ra.y > 0 && ra.y < rp.size.height);
+			assert_true(cv::norm(rectified_to_world(rp, ca, ra.x, ra.y, ra.x - rb.x) - w) < 1e-6);
+		}
+	}
+}
+
 // Inside a seed triangle the prior is the plane through its vertices; past the rim the nearest
 // value reaches as far as asked and no farther.
 void prior_is_linear_in_its_triangles(void **)
@@ -378,6 +420,7 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(rectification_reprojects_exactly),
+		cmocka_unit_test(rectification_keeps_diagonal_baselines_on_x),
 		cmocka_unit_test(prior_is_linear_in_its_triangles),
 		cmocka_unit_test(dense_points_lie_on_the_sphere),
 		cmocka_unit_test(coarse_search_works_without_code),

@@ -180,6 +180,10 @@ static std::vector<std::string> report_warnings(const recon::ReconReport &r, con
 			      decoded, detected, 100.0 * double(decoded) / double(detected), pattern_id.c_str());
 		out.push_back(buf);
 	}
+	for (const recon::PairReport &p : r.pairs)
+		if (!p.dense_error.empty())
+			out.push_back("pair " + std::to_string(p.cam_a) + "-" + std::to_string(p.cam_b) +
+				      ": dense stage failed (" + p.dense_error + "); the surface lacks that pair's view");
 	for (const recon::CameraReport &c : r.cameras) {
 		int matched = 0, dense_points = 0;
 		std::string pairs;
