@@ -181,17 +181,24 @@ int render(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb, ui
 	return (int)camera == r->late_camera ? r->late_ms : 0;
 }
 
-void test_sim_renders_each_camera_and_trigger(void **)
+// Four 16 x 12 cameras drawn by `r`.
+fscan_camera *open_sim(Renderer *r)
 {
-	Renderer r;
 	fscan_camera_params p{};
 	p.count = 4;
 	p.width = 16;
 	p.height = 12;
 	p.render = render;
-	p.render_user = &r;
+	p.render_user = r;
 	fscan_camera *cam = nullptr;
 	assert_int_equal(fscan_camera_create(&fscan_camera_sim_ops, &p, &cam), 0);
+	return cam;
+}
+
+void test_sim_renders_each_camera_and_trigger(void **)
+{
+	Renderer r;
+	fscan_camera *cam = open_sim(&r);
 	assert_int_equal(fscan_camera_arm(cam, 0, 2), 0);
 	assert_int_equal(r.calls, 8);
 	for (uint32_t t = 0; t < 2; t++) {
@@ -215,7 +222,8 @@ void test_sim_renders_each_camera_and_trigger(void **)
 	assert_int_equal(fscan_camera_configure(cam, &cfg), -EINVAL);
 	fscan_camera_destroy(cam);
 	// No renderer, no backend.
-	p.render = nullptr;
+	fscan_camera_params p{};
+	p.count = 4;
 	assert_int_equal(fscan_camera_create(&fscan_camera_sim_ops, &p, &cam), -EINVAL);
 }
 
@@ -230,14 +238,7 @@ long ms_since(std::chrono::steady_clock::time_point t0)
 void test_sim_late_and_dropped_frames(void **)
 {
 	Renderer r;
-	fscan_camera_params p{};
-	p.count = 4;
-	p.width = 16;
-	p.height = 12;
-	p.render = render;
-	p.render_user = &r;
-	fscan_camera *cam = nullptr;
-	assert_int_equal(fscan_camera_create(&fscan_camera_sim_ops, &p, &cam), 0);
+	fscan_camera *cam = open_sim(&r);
 
 	r.late_camera = 1;
 	r.late_ms = 150;
