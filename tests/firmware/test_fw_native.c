@@ -114,20 +114,27 @@ static void test_hello_and_boot(void **state)
 	assert_int_equal(h.proto_version, FS_PROTO_VERSION);
 }
 
-static void test_fire_exact_report(void **state)
+/* Sets the timing and fires with it: both acknowledged. */
+static void fire_with(const struct fs_timing *t)
 {
-	(void)state;
 	struct fs_frame f, r;
-	struct fs_timing t;
-	fs_timing_default(&t);
-	t.exposure_us = 4000;
-	t.flash_delay_us = 9000;
 	fs_frame_init(&f, FS_CMD_SET_TIMING, 0);
-	fs_timing_put(&f, &t);
+	fs_timing_put(&f, t);
 	assert_int_equal(fwc_transact(&client, &f, &r, TIMEOUT_MS), 1);
 	assert_int_equal(r.type, FS_RSP_ACK);
 	assert_int_equal(fwc_cmd(&client, FS_CMD_FIRE, &r, TIMEOUT_MS), 1);
 	assert_int_equal(r.type, FS_RSP_ACK);
+}
+
+static void test_fire_exact_report(void **state)
+{
+	(void)state;
+	struct fs_frame f;
+	struct fs_timing t;
+	fs_timing_default(&t);
+	t.exposure_us = 4000;
+	t.flash_delay_us = 9000;
+	fire_with(&t);
 	assert_int_equal(fwc_wait_event(&client, FS_EVT_REPORT, &f, TIMEOUT_MS), 1);
 	struct fs_report rep;
 	assert_int_equal(fs_report_get(&f, &rep), 0);
@@ -180,12 +187,7 @@ static void test_sigusr2_resets_mid_sequence(void **state)
 	struct fs_timing t;
 	fs_timing_default(&t);
 	t.proj_settle_us = 400000;
-	fs_frame_init(&f, FS_CMD_SET_TIMING, 0);
-	fs_timing_put(&f, &t);
-	assert_int_equal(fwc_transact(&client, &f, &r, TIMEOUT_MS), 1);
-	assert_int_equal(r.type, FS_RSP_ACK);
-	assert_int_equal(fwc_cmd(&client, FS_CMD_FIRE, &r, TIMEOUT_MS), 1);
-	assert_int_equal(r.type, FS_RSP_ACK);
+	fire_with(&t);
 	usleep(100000); /* projectors on, shutters not yet */
 	assert_int_equal(kill(pid, SIGUSR2), 0);
 	/* The power-on EVT_BOOT may still wait unread in the pty: the reset's is the next one. */
