@@ -72,8 +72,6 @@ layer_lib = $(OUT)/lib/libfacescan-$(1).a
 LIB_DIRS := $(foreach l,$(LAYERS),$(LAYER_DIRS_$(l)))
 ALL_SRC  := $(foreach d,$(LIB_DIRS),$(wildcard $(d)/*.c $(d)/*.cpp))
 MAIN_SRC := $(filter %/main.c %/main.cpp,$(ALL_SRC))
-LIB_SRC  := $(filter-out $(MAIN_SRC),$(ALL_SRC))
-LIB_OBJ  := $(patsubst %,$(OUT)/obj/%.o,$(LIB_SRC))
 # Every layer's archive, in link order (the firmware core on the native board, which the serial
 # fake's MCU pulls in, goes between the drivers and the layers below them: firmware/firmware.mk).
 LIB      := $(foreach l,$(LAYERS),$(call layer_lib,$(l)))
