@@ -1,7 +1,8 @@
 /* Fake serial transport: an AF_UNIX stream socket pair per connection. The link reads and
  * writes one end; the other end (the peer) belongs to the fake device, which lives in a small
  * registry keyed by device name so that it outlives the link's close/reopen cycles, as a
- * /dev node outlives its users. */
+ * /dev node outlives its users. A device with the MCU attached serves each connection with
+ * the MCU model (serial_mcu_model.c) on the peer end. */
 #define _GNU_SOURCE
 #include "facescan/serial_fake.h"
 #include "serial_internal.h"
@@ -25,6 +26,9 @@ struct device {
 	int users;           /* open connections (0 or 1) */
 	int open_count;
 	struct fs_decoder dec; /* for fscan_serial_fake_peer_recv */
+	bool mcu;              /* fscan_serial_fake_attach_mcu(): a model serves each connection */
+	struct fscan_mcu_model *model; /* the current connection's, or NULL */
+	int scans_before;      /* sequences completed by the models of earlier connections */
 };
 
 static struct device devices[MAX_DEVICES];
@@ -54,14 +58,47 @@ static struct device *find_device(const char *name, bool create)
 	return free_slot;
 }
 
-/* Forgets a device nobody uses any more (unless it is unplugged: that state must survive). */
+/* Forgets a device nobody uses any more (unless it is unplugged or has the MCU attached: that
+ * state must survive). */
 static void release_device(struct device *d)
 {
-	if (d->users || d->unplugged)
+	if (d->users || d->unplugged || d->mcu)
 		return;
 	if (d->peer >= 0)
 		close(d->peer);
 	memset(d, 0, sizeof(*d));
+}
+
+/* Stops the device's MCU model (its count kept for fscan_serial_fake_mcu_scans()), then closes
+ * the peer end: in this order, so that the model never serves a descriptor closed under it.
+ * Called with devices_lock held. */
+static void stop_mcu(struct device *d)
+{
+	if (d->model) {
+		int n = fscan_mcu_model_scans(d->model);
+		d->scans_before += n > 0 ? n : 0;
+		fscan_mcu_model_stop(d->model);
+		d->model = NULL;
+	}
+	if (d->peer >= 0) {
+		close(d->peer);
+		d->peer = -1;
+	}
+}
+
+/* Pulls the cable. Called with devices_lock held. */
+static void unplug_device(struct device *d)
+{
+	d->unplugged = true;
+	stop_mcu(d);
+}
+
+/* A model that hung up (fscan_mcu_model_hangup_on_sequence) pulled the cable: the device
+ * becomes unplugged. Called with devices_lock held, before anything that looks at the device. */
+static void note_hangup(struct device *d)
+{
+	if (d->model && fscan_mcu_model_hung_up(d->model) > 0)
+		unplug_device(d);
 }
 
 static int fake_open(const struct fscan_serial_config *cfg, void **ret_ctx)
@@ -76,6 +113,7 @@ static int fake_open(const struct fscan_serial_config *cfg, void **ret_ctx)
 		r = -ENOMEM;
 		goto out;
 	}
+	note_hangup(d);
 	if (d->unplugged) {
 		r = -ENODEV;
 		goto out;
@@ -95,6 +133,18 @@ static int fake_open(const struct fscan_serial_config *cfg, void **ret_ctx)
 		close(sv[1]);
 		r = -ENOMEM;
 		goto out_release;
+	}
+	if (d->mcu) {
+		/* The MCU is powered by its cable: each connection boots it (EVT_BOOT first). */
+		r = fscan_mcu_model_start(sv[1], &d->model);
+		if (r < 0) {
+			d->model = NULL;
+			free(c);
+			c = NULL;
+			close(sv[0]);
+			close(sv[1]);
+			goto out_release;
+		}
 	}
 	if (d->peer >= 0)
 		close(d->peer);
@@ -116,8 +166,11 @@ out:
 static void fake_close(void *ctx)
 {
 	struct conn *c = ctx;
-	close(c->fd);
 	pthread_mutex_lock(&devices_lock);
+	note_hangup(c->dev);
+	if (c->dev->mcu)
+		stop_mcu(c->dev); /* before our end closes: the model never writes into a closed pair */
+	close(c->fd);
 	c->dev->users = 0;
 	release_device(c->dev);
 	pthread_mutex_unlock(&devices_lock);
@@ -264,35 +317,31 @@ int fscan_serial_fake_peer_recv(struct fscan_serial *link, struct fs_frame *ret_
 	}
 }
 
+/* Plugs the cable back. Called with devices_lock held. */
+static void plug_device(struct device *d)
+{
+	d->unplugged = false;
+	release_device(d);
+}
+
 int fscan_serial_fake_unplug(struct fscan_serial *link)
 {
 	pthread_mutex_lock(&devices_lock);
 	struct device *d = device_of(link);
-	int r = -EINVAL;
-	if (d) {
-		d->unplugged = true;
-		if (d->peer >= 0) {
-			close(d->peer);
-			d->peer = -1;
-		}
-		r = 0;
-	}
+	if (d)
+		unplug_device(d);
 	pthread_mutex_unlock(&devices_lock);
-	return r;
+	return d ? 0 : -EINVAL;
 }
 
 int fscan_serial_fake_plug(struct fscan_serial *link)
 {
 	pthread_mutex_lock(&devices_lock);
 	struct device *d = device_of(link);
-	int r = -EINVAL;
-	if (d) {
-		d->unplugged = false;
-		release_device(d);
-		r = 0;
-	}
+	if (d)
+		plug_device(d);
 	pthread_mutex_unlock(&devices_lock);
-	return r;
+	return d ? 0 : -EINVAL;
 }
 
 int fscan_serial_fake_open_count(struct fscan_serial *link)
@@ -300,6 +349,85 @@ int fscan_serial_fake_open_count(struct fscan_serial *link)
 	pthread_mutex_lock(&devices_lock);
 	struct device *d = device_of(link);
 	int r = d ? d->open_count : -EINVAL;
+	pthread_mutex_unlock(&devices_lock);
+	return r;
+}
+
+/* ---- the fake device with the MCU on it ---- */
+
+/* The attached device called `name` (hangups noted), or NULL. Called with devices_lock held. */
+static struct device *mcu_device(const char *name)
+{
+	struct device *d = name ? find_device(name, false) : NULL;
+	if (!d || !d->mcu)
+		return NULL;
+	note_hangup(d);
+	return d;
+}
+
+int fscan_serial_fake_attach_mcu(const char *device)
+{
+	if (!device || !strcmp(device, FSCAN_SERIAL_FAKE_MISSING_DEVICE))
+		return -EINVAL;
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = find_device(device, true);
+	int r = !d ? -ENOMEM : d->users ? -EBUSY : 0;
+	if (!r) {
+		d->mcu = true;
+		d->unplugged = false;
+		d->scans_before = 0;
+	}
+	pthread_mutex_unlock(&devices_lock);
+	return r;
+}
+
+int fscan_serial_fake_device_unplug(const char *device)
+{
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = mcu_device(device);
+	if (d)
+		unplug_device(d);
+	pthread_mutex_unlock(&devices_lock);
+	return d ? 0 : -EINVAL;
+}
+
+int fscan_serial_fake_device_plug(const char *device)
+{
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = mcu_device(device);
+	if (d)
+		plug_device(d);
+	pthread_mutex_unlock(&devices_lock);
+	return d ? 0 : -EINVAL;
+}
+
+int fscan_serial_fake_mcu_press(const char *device)
+{
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = mcu_device(device);
+	int r = !d ? -EINVAL : !d->model ? -ENOTCONN : fscan_mcu_model_press(d->model);
+	pthread_mutex_unlock(&devices_lock);
+	return r;
+}
+
+int fscan_serial_fake_mcu_unplug_on_fire(const char *device)
+{
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = mcu_device(device);
+	int r = !d ? -EINVAL : !d->model ? -ENOTCONN : fscan_mcu_model_hangup_on_sequence(d->model);
+	pthread_mutex_unlock(&devices_lock);
+	return r;
+}
+
+int fscan_serial_fake_mcu_scans(const char *device)
+{
+	pthread_mutex_lock(&devices_lock);
+	struct device *d = mcu_device(device);
+	int r = -EINVAL;
+	if (d) {
+		int n = d->model ? fscan_mcu_model_scans(d->model) : 0;
+		r = d->scans_before + (n > 0 ? n : 0);
+	}
 	pthread_mutex_unlock(&devices_lock);
 	return r;
 }

@@ -17,6 +17,7 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -36,6 +37,8 @@ struct fscan_mcu_model {
 	pthread_mutex_t lock;
 	/* Shared with the API (under lock). */
 	bool mute;
+	bool hangup_armed; /* hang up once the next sequence has started */
+	bool hung_up;
 	int scans;
 	/* Thread-only state. */
 	uint64_t start_us; /* host clock at start */
@@ -70,7 +73,10 @@ static void to_host(const uint8_t *buf, size_t len, void *ctx)
 	note_scans(m);
 	size_t done = 0;
 	while (done < len) {
-		ssize_t w = write(m->fd, buf + done, len - done);
+		/* send() where it can: a host that closed its end must not raise SIGPIPE here. */
+		ssize_t w = send(m->fd, buf + done, len - done, MSG_NOSIGNAL);
+		if (w < 0 && errno == ENOTSOCK)
+			w = write(m->fd, buf + done, len - done);
 		if (w < 0) {
 			if (errno == EAGAIN || errno == EINTR) {
 				struct pollfd p = {.fd = m->fd, .events = POLLOUT};
@@ -90,28 +96,58 @@ static void skip(struct fscan_mcu_model *m, uint64_t us)
 	m->skew_us += us;
 }
 
+/* One pass of the task; then, if a hangup is armed and the firmware has started a sequence
+ * (lights on), the cable goes: the descriptor is shut down both ways and true says stop
+ * serving. */
+static bool poll_core(struct fscan_mcu_model *m)
+{
+	fw_core_poll();
+	pthread_mutex_lock(&m->lock);
+	bool armed = m->hangup_armed;
+	pthread_mutex_unlock(&m->lock);
+	if (!armed)
+		return false;
+	struct fs_status s;
+	fw_core_status(&s);
+	if (s.state != FS_STATE_BUSY)
+		return false;
+	shutdown(m->fd, SHUT_RDWR);
+	pthread_mutex_lock(&m->lock);
+	m->hangup_armed = false;
+	m->hung_up = true;
+	pthread_mutex_unlock(&m->lock);
+	return true;
+}
+
 /* Brings the virtual clock up to the host's, runs the task, and plays a running sequence to
- * its end at once: each step lands on its own virtual tick, with a pass of the task between. */
-static void pump(struct fscan_mcu_model *m)
+ * its end at once: each step lands on its own virtual tick, with a pass of the task between.
+ * True: the model hung up (poll_core). */
+static bool pump(struct fscan_mcu_model *m)
 {
 	uint64_t target = mono_us() - m->start_us + m->skew_us;
 	if (target > native_now())
 		native_advance(target - native_now());
-	fw_core_poll();
+	if (poll_core(m))
+		return true;
 	for (uint64_t due = native_next_due(); due != UINT64_MAX; due = native_next_due()) {
 		skip(m, due);
-		fw_core_poll();
+		if (poll_core(m))
+			return true;
 	}
+	return false;
 }
 
-/* Holds the button pressed (or released) for `ms` of virtual time, a task pass per ms. */
-static void hold_button(struct fscan_mcu_model *m, bool pressed, unsigned ms)
+/* Holds the button pressed (or released) for `ms` of virtual time, a task pass per ms.
+ * True: the model hung up (poll_core). */
+static bool hold_button(struct fscan_mcu_model *m, bool pressed, unsigned ms)
 {
 	native_set_button(pressed);
 	for (unsigned i = 0; i < ms; i++) {
 		skip(m, 1000u);
-		fw_core_poll();
+		if (poll_core(m))
+			return true;
 	}
+	return false;
 }
 
 static void *serve(void *arg)
@@ -129,10 +165,9 @@ static void *serve(void *arg)
 			if (read(m->wake[0], &c, 1) == 1) {
 				if (c == 'q')
 					return NULL;
-				if (c == 'p') {
-					hold_button(m, true, PRESS_HOLD_MS);
-					hold_button(m, false, PRESS_HOLD_MS);
-				}
+				if (c == 'p' && (hold_button(m, true, PRESS_HOLD_MS) ||
+						 hold_button(m, false, PRESS_HOLD_MS)))
+					return NULL;
 			}
 		}
 		if (p[1].revents & POLLNVAL)
@@ -156,10 +191,12 @@ static void *serve(void *arg)
 			for (ssize_t i = 0; !mute && i < n; i += INJECT_CHUNK) {
 				size_t len = (size_t)(n - i) < INJECT_CHUNK ? (size_t)(n - i) : INJECT_CHUNK;
 				native_uart_inject(buf + i, len);
-				pump(m);
+				if (pump(m))
+					return NULL;
 			}
 		}
-		pump(m);
+		if (pump(m))
+			return NULL;
 	}
 }
 
@@ -246,6 +283,30 @@ int fscan_mcu_model_set_mute(struct fscan_mcu_model *model, bool mute)
 	model->mute = mute;
 	pthread_mutex_unlock(&model->lock);
 	return 0;
+}
+
+int fscan_mcu_model_hangup_on_sequence(struct fscan_mcu_model *model)
+{
+	if (!model)
+		return -EINVAL;
+	int type;
+	socklen_t len = sizeof(type);
+	if (getsockopt(model->fd, SOL_SOCKET, SO_TYPE, &type, &len) < 0)
+		return -errno;
+	pthread_mutex_lock(&model->lock);
+	model->hangup_armed = true;
+	pthread_mutex_unlock(&model->lock);
+	return 0;
+}
+
+int fscan_mcu_model_hung_up(struct fscan_mcu_model *model)
+{
+	if (!model)
+		return -EINVAL;
+	pthread_mutex_lock(&model->lock);
+	int r = model->hung_up;
+	pthread_mutex_unlock(&model->lock);
+	return r;
 }
 
 int fscan_mcu_model_scans(struct fscan_mcu_model *model)

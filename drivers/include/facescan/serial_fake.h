@@ -2,7 +2,8 @@
  * AF_UNIX stream socket pair: the link reads and writes one end, the test (or an MCU model
  * thread) the other — the "peer". Unplugging closes the pair as a USB unplug would: the link
  * sees a hangup, and reopening fails with -ENODEV until the test plugs it back.
- * Every function takes a handle created with fscan_serial_fake_ops (-EINVAL otherwise).
+ * The functions that take a link need one created with fscan_serial_fake_ops (-EINVAL
+ * otherwise).
  */
 #ifndef FACESCAN_SERIAL_FAKE_H
 #define FACESCAN_SERIAL_FAKE_H
@@ -52,6 +53,36 @@ int fscan_mcu_model_press(struct fscan_mcu_model *model);
 int fscan_mcu_model_set_mute(struct fscan_mcu_model *model, bool mute);
 /* Sequences completed (the firmware's STATUS scan count). */
 int fscan_mcu_model_scans(struct fscan_mcu_model *model);
+/* The cable is pulled during the next sequence: once the firmware has started it (lights on),
+ * the model shuts its descriptor down both ways (the host reads what was sent, then a hangup;
+ * the report never comes) and stops serving. The descriptor must be a socket (the fake's
+ * peer): -ENOTSOCK otherwise. */
+int fscan_mcu_model_hangup_on_sequence(struct fscan_mcu_model *model);
+/* 1 once the model has hung up that way, else 0. */
+int fscan_mcu_model_hung_up(struct fscan_mcu_model *model);
+
+/* ---- a fake device with the MCU on it (facescand's serial_device = fake) ----
+ * These take the device's name (cfg->device), not a link: a test reaches the MCU while another
+ * part owns the link (facescand's SerialMcu destroys and recreates its link on a hangup).
+ * -EINVAL when no device of that name has the MCU attached. */
+/* Attaches the MCU model to `device`: every connection a link opens to it from now on is served
+ * by the model on the peer end. The MCU is powered by its cable: each connection boots the
+ * firmware (EVT_BOOT first), and the model stops when the link closes or the cable is pulled.
+ * The device stays registered, plugged in, and the scan count starts from 0.
+ * -EBUSY while a link has it open, -ENOMEM when the registry is full. */
+int fscan_serial_fake_attach_mcu(const char *device);
+/* Pulls the cable (the MCU stops, the link sees a hangup, reopening fails with -ENODEV) and
+ * plugs it back. */
+int fscan_serial_fake_device_unplug(const char *device);
+int fscan_serial_fake_device_plug(const char *device);
+/* Presses the MCU's booth button (fscan_mcu_model_press). -ENOTCONN when no link is connected. */
+int fscan_serial_fake_mcu_press(const char *device);
+/* The link is lost during the next sequence (fscan_mcu_model_hangup_on_sequence): the link sees
+ * a hangup instead of the report, and the device stays unplugged until
+ * fscan_serial_fake_device_plug(). -ENOTCONN when no link is connected. */
+int fscan_serial_fake_mcu_unplug_on_fire(const char *device);
+/* Sequences the firmware completed since the attach, over every connection. */
+int fscan_serial_fake_mcu_scans(const char *device);
 
 /* fscan_serial_fake_ops->open fails with -ENOENT when cfg->device is this name. */
 #define FSCAN_SERIAL_FAKE_MISSING_DEVICE "missing"
