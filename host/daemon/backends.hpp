@@ -1,6 +1,8 @@
-// The hardware and pipeline facescand drives, as C++ interfaces. Each has a fake in
-// fake_backends.hpp (with back doors for fault tests) and an adapter over the real part
-// (drivers/, host/recon) where that part exists. The daemon holds them; only the thread that
+// The hardware and pipeline facescand drives, as C++ interfaces, each with an adapter over the
+// real part (drivers/, host/recon). The fakes sit below the adapters, beside the real parts: the
+// serial driver's fake transport with the firmware core at its far end, the camera driver's
+// fake backend (back doors for fault tests in facescan/*_fake.h); only the reconstruction has a
+// fake of its own here (fake_backends.hpp). The daemon holds them; only the thread that
 // owns the booth's current stage calls them (see daemon.hpp).
 #pragma once
 

@@ -88,8 +88,9 @@ Status DriverCameras::open()
 		p.height = static_cast<uint32_t>(height_);
 		p.render = render_trampoline;
 		p.render_user = this;
-	} else if (backend_ == "driver-fake") {
+	} else if (backend_ == "fake") {
 		ops = &fscan_camera_fake_ops;
+		calibration_id_ = "fake-calibration";
 	} else {
 		return Status::error(EINVAL, "unknown camera backend " + backend_);
 	}

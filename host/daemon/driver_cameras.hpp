@@ -35,7 +35,8 @@ using BoothFactory =
 class DriverCameras : public Cameras {
 public:
 	/// backend: "libcamera", "replay" (source = capture set directory), "sim" (render and
-	/// width/height required), "driver-fake".
+	/// width/height required), "fake" (the driver's fake backend: synthetic 64x48 frames, faults
+	/// injected through handle() and facescan/camera_fake.h).
 	DriverCameras(std::string backend, std::string source, int count, int exposure_us, int max_skew_us);
 	~DriverCameras() override;
 	void set_renderer(RenderFn render, int width, int height, std::string calibration_id);

@@ -1,86 +1,18 @@
-// Fakes of the booth, for tests and for running facescand where a part is missing. Back doors
-// (thread-safe) let tests inject the faults a real booth has: an unplugged MCU, a camera that
-// never delivers, frames from a different trigger.
+// The reconstruction's fake (recon_backend = fake), for tests and for running facescand without
+// the pipeline; a back door fails its next run. The booth's other parts have no fake here: the
+// MCU is SerialMcu over the serial driver's fake transport with the firmware core at its far end,
+// the cameras DriverCameras over the camera driver's fake backend (make_backends.cpp); their
+// faults are injected through facescan/serial_fake.h and facescan/camera_fake.h.
 #pragma once
 
 #include "daemon/backends.hpp"
 
 #include <atomic>
-#include <memory>
-#include <mutex>
 
 namespace facescan::daemon {
 
-class FakeMcu : public Mcu {
-public:
-	FakeMcu();
-	~FakeMcu() override;
-	Status open() override;
-	void close() override;
-	bool is_open() const override;
-	std::string firmware_version() const override;
-	Status arm(const Timing &timing) override;
-	Status fire(int timeout_ms, TriggerReport *ret_report) override;
-	Status abort() override;
-	int event_fd() const override;
-	Status poll_events(std::vector<McuEvent> *ret_events) override;
-	Status simulate_button() override;
-
-	// back doors
-	void press_button();
-	void unplug();         // the link drops now; open() fails until replug()
-	void replug();
-	void unplug_on_fire(); // the next fire() loses the link mid-sequence
-	int fired() const;     // sequences fired so far
-	Timing last_timing() const;
-
-private:
-	mutable std::mutex mu_;
-	int efd_ = -1;
-	bool open_ = false;
-	bool plugged_ = true;
-	bool armed_ = false;
-	bool unplug_on_fire_ = false;
-	bool lost_ = false;
-	int presses_ = 0;
-	int fired_ = 0;
-	uint32_t sequence_ = 0;
-	Timing timing_;
-	void kick();
-};
-
-class FakeCameras : public Cameras {
-public:
-	explicit FakeCameras(int count, int width = 64, int height = 48);
-	Status open() override;
-	std::string backend_name() const override
-	{
-		return "fake";
-	}
-	int count() const override
-	{
-		return count_;
-	}
-	Status prepare() override;
-	Status collect(const TriggerReport &report, int timeout_ms, Capture *ret_capture) override;
-
-	// back doors
-	void fail_next_collect_with_timeout(); // one camera never delivers
-	void mix_next_trigger();               // one camera delivers a frame of another trigger
-	int collected() const
-	{
-		return collected_;
-	}
-
-private:
-	int count_, width_, height_;
-	std::atomic<bool> timeout_{false};
-	std::atomic<bool> mix_{false};
-	std::atomic<int> collected_{0};
-};
-
 /// A fixed hemisphere (radius 80 mm, about 1.1k vertices), Draco-encoded, textured from
-/// camera 0's texture frame (or its pattern frame). Optional delay per run, for fault tests.
+/// camera 0's texture frame (or its pattern frame). fail_next_run() fails the next run.
 class FakeReconstructor : public Reconstructor {
 public:
 	std::string backend_name() const override

@@ -1,5 +1,6 @@
 #include "daemon/make_backends.hpp"
 
+#include <cstring>
 #include <unistd.h>
 
 #include "daemon/driver_cameras.hpp"
@@ -8,34 +9,38 @@
 #include "daemon/serial_mcu.hpp"
 #include "daemon/worker_recon.hpp"
 #include "daemon/sim_renderer.hpp"
+#include "facescan/serial_fake.h"
 
 namespace facescan::daemon {
 
 Status make_backends(const Config &config, const BoothFactory &make_booth, Backends *ret_backends)
 {
 	Backends b;
-	if (config.serial_device == "fake")
-		b.mcu = std::make_unique<FakeMcu>();
-	else
+	if (config.serial_device == "fake") {
+		// The serial driver's fake transport with the firmware core at its far end: the same
+		// SerialMcu, protocol and firmware as a booth, without the cable.
+		int rc = fscan_serial_fake_attach_mcu(config.serial_device.c_str());
+		if (rc < 0)
+			return Status::error(-rc, "fake MCU: " + std::string(std::strerror(-rc)));
+		b.mcu = std::make_unique<SerialMcu>(&fscan_serial_fake_ops, config.serial_device,
+						    config.mode == Mode::booth, config.mcu_timeout_ms);
+	} else {
 		b.mcu = std::make_unique<SerialMcu>(config.serial_device, config.serial_baud, config.mode == Mode::booth,
 						    config.mcu_timeout_ms);
+	}
 	if (config.button_source == ButtonSource::gpio) {
 		Status s = make_gpio_mcu(config, std::move(b.mcu), &b.mcu);
 		if (!s.ok())
 			return s;
 	}
-	if (config.camera_backend == "fake") {
-		b.cameras = std::make_unique<FakeCameras>(config.camera_count);
-	} else {
-		auto cams = std::make_unique<DriverCameras>(config.camera_backend, config.replay_dir, config.camera_count,
-							    config.exposure_us, config.max_frame_skew_us);
-		if (config.camera_backend == "simulated") {
-			Status s = attach_simulator(config, make_booth, cams.get());
-			if (!s.ok())
-				return s;
-		}
-		b.cameras = std::move(cams);
+	auto cams = std::make_unique<DriverCameras>(config.camera_backend, config.replay_dir, config.camera_count,
+						    config.exposure_us, config.max_frame_skew_us);
+	if (config.camera_backend == "simulated") {
+		Status s = attach_simulator(config, make_booth, cams.get());
+		if (!s.ok())
+			return s;
 	}
+	b.cameras = std::move(cams);
 	if (config.recon_backend == "fake") {
 		b.recon = std::make_unique<FakeReconstructor>();
 	} else {

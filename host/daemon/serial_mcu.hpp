@@ -17,7 +17,8 @@ public:
 	/// booth: arm() sends ARM, so a button press starts the sequence in the firmware itself;
 	/// clinic: arm() only sets the timing and the host fires.
 	SerialMcu(std::string device, int baud, bool booth, int timeout_ms);
-	/// For tests: another byte transport (the fake serial ops).
+	/// Another byte transport: the serial driver's fake (serial_device = fake, tests), whose
+	/// device has the firmware core attached (fscan_serial_fake_attach_mcu).
 	SerialMcu(const fscan_serial_ops *ops, std::string device, bool booth, int timeout_ms);
 	~SerialMcu() override;
 	Status open() override;

@@ -1,14 +1,21 @@
-// facescand in-process with the fake booth: scans over the socket and by button, one scan at a
-// time, socket robustness, and the faults (MCU unplugged mid-scan, camera timeout, frames from
-// different triggers, a failing reconstruction) with recovery. Log lines are captured to check
-// that no patient data reaches them.
+// facescand in-process with the fake booth (what serial_device / camera_backend / recon_backend
+// = fake build: SerialMcu over the serial driver's fake transport with the firmware core at its
+// far end, DriverCameras over the camera driver's fake backend, the fake reconstruction): scans
+// over the socket and by button, one scan at a time, socket robustness, and the faults (MCU
+// unplugged mid-scan, camera timeout, frames from different triggers, a failing
+// reconstruction) with recovery. Log lines are captured to check that no patient data reaches
+// them.
 #include "daemon/clinic_output.hpp"
 #include "daemon/client.hpp"
 #include "daemon/daemon.hpp"
+#include "daemon/driver_cameras.hpp"
 #include "daemon/fake_backends.hpp"
 #include "daemon/gpio_mcu.hpp"
+#include "daemon/make_backends.hpp"
+#include "facescan/camera_fake.h"
 #include "facescan/gpio.h"
 #include "facescan/gpio_fake.h"
+#include "facescan/serial_fake.h"
 #include "daemon/log.hpp"
 
 #include <chrono>
@@ -42,11 +49,47 @@ namespace {
 std::mutex log_mu;
 std::vector<std::string> log_lines;
 
+// The fake booth a config with every backend = fake asks for, as facescand builds it.
+Backends fake_booth(const Config &cfg)
+{
+	Backends b;
+	facescan::Status s = make_backends(cfg, BoothFactory(), &b);
+	if (!s.ok())
+		fail_msg("make_backends: %s", s.message().c_str());
+	return b;
+}
+
+// The back doors of the fake MCU (the firmware core behind the fake serial device).
+struct FakeMcuDevice {
+	std::string name;
+	void press_button()
+	{
+		assert_int_equal(fscan_serial_fake_mcu_press(name.c_str()), 0);
+	}
+	void unplug()
+	{
+		assert_int_equal(fscan_serial_fake_device_unplug(name.c_str()), 0);
+	}
+	void replug()
+	{
+		assert_int_equal(fscan_serial_fake_device_plug(name.c_str()), 0);
+	}
+	void unplug_on_fire()
+	{
+		assert_int_equal(fscan_serial_fake_mcu_unplug_on_fire(name.c_str()), 0);
+	}
+	int fired() const
+	{
+		return fscan_serial_fake_mcu_scans(name.c_str());
+	}
+};
+
 struct Rig {
 	std::string dir;
 	Config cfg;
-	FakeMcu *mcu = nullptr;
-	FakeCameras *cams = nullptr;
+	FakeMcuDevice mcu_device;
+	FakeMcuDevice *mcu = &mcu_device;
+	DriverCameras *cams = nullptr;
 	FakeReconstructor *recon = nullptr;
 	std::unique_ptr<Daemon> d;
 	std::thread loop;
@@ -72,18 +115,15 @@ struct Rig {
 		cfg.arm_timeout_ms = 1000;
 		cfg.test_delay_write_ms = delay_write_ms;
 		cfg.client_timeout_ms = client_timeout_ms;
-		Backends b;
-		auto m = std::make_unique<FakeMcu>();
-		auto c = std::make_unique<FakeCameras>(4);
-		auto r = std::make_unique<FakeReconstructor>();
-		mcu = m.get();
-		cams = c.get();
-		recon = r.get();
-		b.mcu = std::move(m);
+		cfg.camera_count = 4;
+		Backends b = fake_booth(cfg);
+		mcu_device.name = cfg.serial_device;
+		cams = dynamic_cast<DriverCameras *>(b.cameras.get());
+		recon = dynamic_cast<FakeReconstructor *>(b.recon.get());
+		assert_non_null(cams);
+		assert_non_null(recon);
 		if (gpio)
 			b.mcu = std::make_unique<GpioMcu>(std::move(b.mcu), gpio);
-		b.cameras = std::move(c);
-		b.recon = std::move(r);
 		d = std::make_unique<Daemon>(cfg, std::move(b));
 		facescan::Status s = d->start();
 		if (!s.ok())
@@ -141,14 +181,15 @@ struct Rig {
 	}
 };
 
-// A second daemon on `cfg` with its own fake booth: started, it returns start()'s status.
+// A second daemon on `cfg` with a fake booth of its own (its MCU on another fake serial device:
+// the first daemon's link holds "fake"): started, it returns start()'s status.
 facescan::Status start_another(const Config &cfg)
 {
-	Backends b;
-	b.mcu = std::make_unique<FakeMcu>();
-	b.cameras = std::make_unique<FakeCameras>(4);
-	b.recon = std::make_unique<FakeReconstructor>();
-	Daemon other(cfg, std::move(b));
+	Config booth = cfg;
+	booth.serial_device = "fake-other";
+	booth.camera_backend = "fake";
+	booth.recon_backend = "fake";
+	Daemon other(cfg, fake_booth(booth));
 	return other.start();
 }
 
@@ -240,10 +281,11 @@ static void test_scan_over_socket(void **)
 	assert_true(glb.size() > 12 && glb.compare(0, 4, "glTF") == 0);
 	assert_string_equal(meta["patient_id"].get<std::string>().c_str(), "PAT-4711");
 	assert_true(meta["stage_ms"].contains("capture") && meta["stage_ms"].contains("reconstruct"));
-	assert_int_equal(meta["trigger_report"]["sequence"].get<int>(), 1);
+	assert_int_equal(meta["trigger_report"]["scan"].get<int>(), 1);
 	assert_true(meta.contains("software_version") && meta.contains("calibration_id") && meta.contains("quality"));
-	// the MCU got the configured timing
-	assert_int_equal(rig.mcu->last_timing().exposure_us, rig.cfg.exposure_us);
+	// the MCU got the configured timing: the firmware's own shutter pulses (1 MHz ticks) say so
+	assert_int_equal(meta["trigger_report"]["pattern_exposure_ticks"].get<int>(), rig.cfg.exposure_us);
+	assert_int_equal(meta["trigger_report"]["texture_exposure_ticks"].get<int>(), rig.cfg.texture_exposure_us);
 	// status and last
 	json st = rig.ask({{"cmd", "status"}});
 	assert_string_equal(st["state"].get<std::string>().c_str(), "idle");
@@ -402,7 +444,10 @@ static void test_mcu_unplugged_mid_scan(void **)
 	assert_false(done["ok"].get<bool>());
 	assert_string_equal(done["scan"]["state"].get<std::string>().c_str(), "failed");
 	assert_string_equal(done["scan"]["failed_stage"].get<std::string>().c_str(), "capturing");
-	assert_non_null(std::strstr(done["scan"]["error"].get<std::string>().c_str(), "MCU"));
+	// the firmware acknowledged the fire and started the sequence; the link went before its report
+	const std::string err = done["scan"]["error"];
+	std::printf("  %s\n", err.c_str());
+	assert_non_null(std::strstr(err.c_str(), "MCU waiting for the report: link lost"));
 	json st = rig.ask({{"cmd", "status"}});
 	assert_string_equal(st["state"].get<std::string>().c_str(), "error");
 	assert_string_equal(st["mcu"].get<std::string>().c_str(), "disconnected");
@@ -429,7 +474,8 @@ static void test_mcu_unplugged_while_idle(void **)
 static void test_camera_timeout(void **)
 {
 	Rig rig;
-	rig.cams->fail_next_collect_with_timeout();
+	// the last camera never delivers its pattern frame
+	assert_int_equal(fscan_camera_fake_inject(rig.cams->handle(), 3, 0, FSCAN_CAMERA_FAKE_TIMEOUT), 0);
 	json done = rig.scan("CAMTIMEOUT");
 	assert_false(done["ok"].get<bool>());
 	assert_non_null(std::strstr(done["scan"]["error"].get<std::string>().c_str(), "no frame within"));
@@ -440,11 +486,13 @@ static void test_camera_timeout(void **)
 static void test_frames_from_different_triggers(void **)
 {
 	Rig rig;
-	rig.cams->mix_next_trigger();
+	// camera 1's pattern frame is stamped with the next trigger
+	assert_int_equal(fscan_camera_fake_inject(rig.cams->handle(), 1, 0, FSCAN_CAMERA_FAKE_WRONG_TRIGGER), 0);
 	json done = rig.scan("MIXED");
 	assert_false(done["ok"].get<bool>());
 	const std::string err = done["scan"]["error"];
-	assert_non_null(std::strstr(err.c_str(), "camera 1: frame of trigger 2, expected 1"));
+	assert_non_null(std::strstr(err.c_str(), "frames from different triggers"));
+	assert_non_null(std::strstr(err.c_str(), "camera 1: frame of another trigger"));
 	struct stat s;
 	assert_int_equal(stat((rig.cfg.share_dir + "/MIXED").c_str(), &s), -1);
 	assert_true(rig.wait_state(State::idle, 3000));
@@ -464,13 +512,15 @@ static void test_reconstruction_failure(void **)
 
 static void test_check_capture_skew(void **)
 {
-	FakeCameras cams(4);
+	DriverCameras cams("fake", "", 4, 8000, 1000);
+	assert_true(cams.open().ok());
+	assert_true(cams.prepare().ok());
 	TriggerReport r;
 	r.sequence = 5;
 	Capture c;
 	assert_true(cams.collect(r, 100, &c).ok());
 	assert_true(check_capture(c, 4, 1000).ok());
-	c.frames[2].timestamp_ns += 2000000; // 2 ms late
+	c.frames[2].timestamp_ns = c.frames[0].timestamp_ns + 2000000; // 2 ms after camera 0's
 	facescan::Status s = check_capture(c, 4, 1000);
 	assert_int_equal(s.code(), -EPROTO);
 	assert_non_null(std::strstr(s.message().c_str(), "2000 us apart"));
@@ -552,11 +602,10 @@ static void test_socket_group(void **)
 	assert_non_null(own);
 	cfg.socket_group = own->gr_name;
 	{
-		Backends b;
-		b.mcu = std::make_unique<FakeMcu>();
-		b.cameras = std::make_unique<FakeCameras>(4);
-		b.recon = std::make_unique<FakeReconstructor>();
-		Daemon d(cfg, std::move(b));
+		Config booth = cfg;
+		booth.camera_backend = "fake";
+		booth.recon_backend = "fake";
+		Daemon d(cfg, fake_booth(booth));
 		facescan::Status s = d.start();
 		assert_true(s.ok());
 		struct stat st;

@@ -27,7 +27,7 @@ static TriggerReport report(uint32_t seq)
 
 static void test_frames(void **)
 {
-	DriverCameras cams("driver-fake", "", 4, 8000, 1000);
+	DriverCameras cams("fake", "", 4, 8000, 1000);
 	assert_true(cams.open().ok());
 	assert_true(cams.prepare().ok());
 	Capture c;
@@ -48,7 +48,7 @@ static void test_frames(void **)
 
 static void expect_fault(enum fscan_camera_fake_fault fault, int code, const char *text)
 {
-	DriverCameras cams("driver-fake", "", 4, 8000, 1000);
+	DriverCameras cams("fake", "", 4, 8000, 1000);
 	assert_true(cams.open().ok());
 	assert_int_equal(fscan_camera_fake_inject(cams.handle(), 2, 0, fault), 0);
 	assert_true(cams.prepare().ok());

@@ -5,8 +5,9 @@
 #include "capture/capture_set.hpp"
 #include "daemon/client.hpp"
 #include "daemon/daemon.hpp"
-#include "daemon/fake_backends.hpp"
+#include "daemon/driver_cameras.hpp"
 #include "daemon/log.hpp"
+#include "daemon/make_backends.hpp"
 #include "daemon/worker_recon.hpp"
 #include "mesh_io/mesh_io.hpp"
 #include "sim/sim.hpp"
@@ -258,7 +259,9 @@ static void test_frames_are_written_as_a_set(void **)
 	p.calibration_file = d.path + "/calibration.yaml";
 	assert_true(facescan::write_calibration(p.calibration_file, small_calibration()).ok());
 	p.program = script(d, "crash", "kill -SEGV $$");
-	FakeCameras cams(2);
+	DriverCameras cams("fake", "", 2, 8000, 1000);
+	assert_true(cams.open().ok());
+	assert_true(cams.prepare().ok());
 	TriggerReport r;
 	r.sequence = 1;
 	Capture c;
@@ -287,6 +290,8 @@ static void test_daemon_survives_worker_crash(void **)
 	cfg.spool_dir = d.path + "/spool";
 	cfg.socket_path = d.path + "/sock";
 	cfg.serial_device = "fake";
+	cfg.camera_backend = "fake";
+	cfg.recon_backend = "fake"; // replaced by the worker below
 	cfg.min_free_mb = 0;
 	cfg.mcu_timeout_ms = 200;
 	cfg.capture_timeout_ms = 200;
@@ -300,8 +305,7 @@ static void test_daemon_survives_worker_crash(void **)
 	assert_true(facescan::write_calibration(p.calibration_file, cal).ok());
 	p.program = script(d, "crash", "kill -SEGV $$");
 	Backends b;
-	b.mcu = std::make_unique<FakeMcu>();
-	b.cameras = std::make_unique<FakeCameras>(4);
+	assert_true(make_backends(cfg, BoothFactory(), &b).ok());
 	b.recon = std::make_unique<WorkerReconstructor>(p);
 	Daemon daemon(cfg, std::move(b));
 	assert_true(daemon.start().ok());
