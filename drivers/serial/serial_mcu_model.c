@@ -111,11 +111,12 @@ static bool poll_core(struct fscan_mcu_model *m)
 	fw_core_status(&s);
 	if (s.state != FS_STATE_BUSY)
 		return false;
-	shutdown(m->fd, SHUT_RDWR);
+	/* Noted before the host can see the hangup, so that its reopen finds the cable pulled. */
 	pthread_mutex_lock(&m->lock);
 	m->hangup_armed = false;
 	m->hung_up = true;
 	pthread_mutex_unlock(&m->lock);
+	shutdown(m->fd, SHUT_RDWR);
 	return true;
 }
 

@@ -1,9 +1,12 @@
 /* Serial driver: one contract run twice — on the fake transport (socket pair) and on the real
  * termios backend over a real pty (openpty) — both with the in-process MCU model at the far
- * end. Then framing faults, which the fake's raw peer lets us inject byte by byte. */
+ * end. Then the fake device with the MCU attached (facescand's serial_device = fake) and its
+ * name-keyed back doors, and framing faults, which the fake's raw peer lets us inject byte by
+ * byte. */
 #define _GNU_SOURCE
 #include <errno.h>
 #include <fcntl.h>
+#include <pthread.h>
 #include <pty.h>
 #include <setjmp.h>
 #include <stdarg.h>
@@ -12,6 +15,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 #include <cmocka.h>
@@ -247,6 +251,49 @@ static void contract_unplug_and_replug(bool pty)
 	bench_free(b);
 }
 
+/* Pulls the cable from another thread while the link waits (no cmocka asserts off the main
+ * thread). */
+static void *unplug_later(void *arg)
+{
+	struct bench *b = arg;
+	struct timespec ts = {0, 50 * 1000000L};
+	nanosleep(&ts, NULL);
+	if (b->pty) {
+		pty_unplug(b);
+	} else {
+		fscan_serial_fake_unplug(b->link);
+		fscan_mcu_model_stop(b->model);
+		b->model = NULL;
+	}
+	return NULL;
+}
+
+/* The cable goes while the link waits for an event (a report, say): the wait ends with
+ * -ENOTCONN at once, not after its timeout. (The fake's unplug_on_fire relies on this.) */
+static void contract_hangup_while_waiting(bool pty)
+{
+	struct bench *b = bench_new(pty);
+	struct fs_hello h;
+	assert_int_equal(fscan_serial_hello(b->link, &h, T), 0);
+	/* The model can hang up mid-sequence only on a socket (the fake's peer). */
+	if (pty)
+		assert_int_equal(fscan_mcu_model_hangup_on_sequence(b->model), -ENOTSOCK);
+	fscan_serial_flush_input(b->link);
+	pthread_t t;
+	assert_int_equal(pthread_create(&t, NULL, unplug_later, b), 0);
+	struct timespec t0, t1;
+	clock_gettime(CLOCK_MONOTONIC, &t0);
+	struct fs_frame ev;
+	int r = fscan_serial_next_event(b->link, &ev, T);
+	clock_gettime(CLOCK_MONOTONIC, &t1);
+	assert_int_equal(pthread_join(t, NULL), 0);
+	assert_int_equal(r, -ENOTCONN);
+	long ms = (t1.tv_sec - t0.tv_sec) * 1000 + (t1.tv_nsec - t0.tv_nsec) / 1000000;
+	assert_true(ms < T / 2);
+	assert_false(fscan_serial_connected(b->link));
+	bench_free(b);
+}
+
 static void test_fake_hello_timing_status(void **s) { (void)s; contract_hello_timing_status(false); }
 static void test_pty_hello_timing_status(void **s) { (void)s; contract_hello_timing_status(true); }
 static void test_fake_fire_and_report(void **s) { (void)s; contract_fire_and_report(false); }
@@ -257,6 +304,91 @@ static void test_fake_hung_mcu(void **s) { (void)s; contract_hung_mcu_times_out(
 static void test_pty_hung_mcu(void **s) { (void)s; contract_hung_mcu_times_out(true); }
 static void test_fake_unplug(void **s) { (void)s; contract_unplug_and_replug(false); }
 static void test_pty_unplug(void **s) { (void)s; contract_unplug_and_replug(true); }
+static void test_fake_hangup_while_waiting(void **s) { (void)s; contract_hangup_while_waiting(false); }
+static void test_pty_hangup_while_waiting(void **s) { (void)s; contract_hangup_while_waiting(true); }
+
+/* ---- the fake device with the MCU attached ---- */
+
+/* The next event of `type`, skipping others (the boot greeting, a button). */
+static int next_event_of(struct fscan_serial *link, uint8_t type, struct fs_frame *ret)
+{
+	for (int i = 0; i < 10; i++) {
+		int r = fscan_serial_next_event(link, ret, T);
+		if (r < 0)
+			return r;
+		if (ret->type == type)
+			return 0;
+	}
+	return -ENOMSG;
+}
+
+static void test_fake_device_with_mcu(void **s)
+{
+	(void)s;
+	const char *dev = "fake-with-mcu";
+	assert_int_equal(fscan_serial_fake_mcu_press(dev), -EINVAL); /* nothing attached yet */
+	assert_int_equal(fscan_serial_fake_attach_mcu(NULL), -EINVAL);
+	assert_int_equal(fscan_serial_fake_attach_mcu(dev), 0);
+	assert_int_equal(fscan_serial_fake_mcu_press(dev), -ENOTCONN); /* no link connected */
+	assert_int_equal(fscan_serial_fake_mcu_unplug_on_fire(dev), -ENOTCONN);
+	struct fscan_serial_config cfg = {.device = dev};
+	struct fscan_serial *link;
+	assert_int_equal(fscan_serial_create(&fscan_serial_fake_ops, &cfg, &link), 0);
+	assert_int_equal(fscan_serial_fake_attach_mcu(dev), -EBUSY);
+	/* The firmware boots on the connection and answers as itself. */
+	struct fs_frame ev;
+	assert_int_equal(next_event_of(link, FS_EVT_BOOT, &ev), 0);
+	struct fs_hello h;
+	assert_int_equal(fscan_serial_hello(link, &h, T), 0);
+	assert_int_equal(h.board, FS_BOARD_NATIVE);
+	/* A host-fired sequence is counted; a press is the firmware's debounced press. */
+	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 1);
+	assert_int_equal(fscan_serial_fake_mcu_press(dev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_BUTTON, &ev), 0);
+	/* The link lost mid-sequence: the fire is acknowledged (the sequence started), then a
+	 * hangup comes instead of the report, and the device stays unplugged. */
+	assert_int_equal(fscan_serial_fake_mcu_unplug_on_fire(dev), 0);
+	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), -ENOTCONN);
+	assert_int_equal(fscan_serial_hello(link, &h, T), -ENOTCONN);
+	assert_int_equal(fscan_serial_fake_mcu_press(dev), -ENOTCONN);
+	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 1); /* that one never completed */
+	/* Plugged back: the next call reconnects to a freshly booted MCU. */
+	assert_int_equal(fscan_serial_fake_device_plug(dev), 0);
+	assert_int_equal(fscan_serial_hello(link, &h, T), 0);
+	struct fs_status st;
+	assert_int_equal(fscan_serial_status(link, &st, T), 0);
+	assert_int_equal(st.state, FS_STATE_IDLE);
+	assert_int_equal(st.scans, 0);
+	/* The cable pulled while idle, and back. */
+	assert_int_equal(fscan_serial_fake_device_unplug(dev), 0);
+	assert_int_equal(fscan_serial_hello(link, &h, T), -ENOTCONN);
+	assert_int_equal(fscan_serial_hello(link, &h, T), -ENOTCONN);
+	assert_int_equal(fscan_serial_fake_device_plug(dev), 0);
+	assert_int_equal(fscan_serial_hello(link, &h, T), 0);
+	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 2); /* over every connection */
+	struct fscan_serial_stats stats;
+	fscan_serial_get_stats(link, &stats);
+	assert_int_equal(stats.hangups, 2);
+	assert_int_equal(stats.reconnects, 2);
+	fscan_serial_destroy(link);
+	/* The MCU stopped with the link (another model may start: one per process); a new attach
+	 * counts from zero. */
+	struct fscan_mcu_model *other;
+	int fds[2];
+	assert_int_equal(socketpair(AF_UNIX, SOCK_STREAM, 0, fds), 0);
+	assert_int_equal(fscan_mcu_model_start(fds[1], &other), 0);
+	fscan_mcu_model_stop(other);
+	close(fds[0]);
+	close(fds[1]);
+	assert_int_equal(fscan_serial_fake_attach_mcu(dev), 0);
+	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 0);
+	assert_int_equal(fscan_serial_fake_device_unplug("no-such-device"), -EINVAL);
+}
 
 /* ---- framing faults through the fake's raw peer ---- */
 
@@ -399,6 +531,9 @@ int main(void)
 		cmocka_unit_test(test_pty_hung_mcu),
 		cmocka_unit_test(test_fake_unplug),
 		cmocka_unit_test(test_pty_unplug),
+		cmocka_unit_test(test_fake_hangup_while_waiting),
+		cmocka_unit_test(test_pty_hangup_while_waiting),
+		cmocka_unit_test(test_fake_device_with_mcu),
 		cmocka_unit_test(test_garbage_and_bad_crc_skipped),
 		cmocka_unit_test(test_frame_split_across_reads),
 		cmocka_unit_test(test_request_assigns_seq_and_drops_stale),
