@@ -324,24 +324,36 @@ static void plug_device(struct device *d)
 	release_device(d);
 }
 
-int fscan_serial_fake_unplug(struct fscan_serial *link)
+/* The attached device called `name` (hangups noted), or NULL. Called with devices_lock held. */
+static struct device *mcu_device(const char *name)
+{
+	struct device *d = name ? find_device(name, false) : NULL;
+	if (!d || !d->mcu)
+		return NULL;
+	note_hangup(d);
+	return d;
+}
+
+/* Applies fn under devices_lock to the link's device, or without a link to the attached device
+ * `name`. -EINVAL when there is none. */
+static int on_device(struct fscan_serial *link, const char *name, void (*fn)(struct device *))
 {
 	pthread_mutex_lock(&devices_lock);
-	struct device *d = device_of(link);
+	struct device *d = link ? device_of(link) : mcu_device(name);
 	if (d)
-		unplug_device(d);
+		fn(d);
 	pthread_mutex_unlock(&devices_lock);
 	return d ? 0 : -EINVAL;
 }
 
+int fscan_serial_fake_unplug(struct fscan_serial *link)
+{
+	return link ? on_device(link, NULL, unplug_device) : -EINVAL;
+}
+
 int fscan_serial_fake_plug(struct fscan_serial *link)
 {
-	pthread_mutex_lock(&devices_lock);
-	struct device *d = device_of(link);
-	if (d)
-		plug_device(d);
-	pthread_mutex_unlock(&devices_lock);
-	return d ? 0 : -EINVAL;
+	return link ? on_device(link, NULL, plug_device) : -EINVAL;
 }
 
 int fscan_serial_fake_open_count(struct fscan_serial *link)
@@ -354,16 +366,6 @@ int fscan_serial_fake_open_count(struct fscan_serial *link)
 }
 
 /* ---- the fake device with the MCU on it ---- */
-
-/* The attached device called `name` (hangups noted), or NULL. Called with devices_lock held. */
-static struct device *mcu_device(const char *name)
-{
-	struct device *d = name ? find_device(name, false) : NULL;
-	if (!d || !d->mcu)
-		return NULL;
-	note_hangup(d);
-	return d;
-}
 
 int fscan_serial_fake_attach_mcu(const char *device)
 {
@@ -383,40 +385,33 @@ int fscan_serial_fake_attach_mcu(const char *device)
 
 int fscan_serial_fake_device_unplug(const char *device)
 {
-	pthread_mutex_lock(&devices_lock);
-	struct device *d = mcu_device(device);
-	if (d)
-		unplug_device(d);
-	pthread_mutex_unlock(&devices_lock);
-	return d ? 0 : -EINVAL;
+	return device ? on_device(NULL, device, unplug_device) : -EINVAL;
 }
 
 int fscan_serial_fake_device_plug(const char *device)
 {
+	return device ? on_device(NULL, device, plug_device) : -EINVAL;
+}
+
+/* Applies fn to the model serving the attached device `name` under devices_lock: its return,
+ * -EINVAL when there is no such device, -ENOTCONN when no link is connected. */
+static int on_model(const char *name, int (*fn)(struct fscan_mcu_model *))
+{
 	pthread_mutex_lock(&devices_lock);
-	struct device *d = mcu_device(device);
-	if (d)
-		plug_device(d);
+	struct device *d = mcu_device(name);
+	int r = !d ? -EINVAL : !d->model ? -ENOTCONN : fn(d->model);
 	pthread_mutex_unlock(&devices_lock);
-	return d ? 0 : -EINVAL;
+	return r;
 }
 
 int fscan_serial_fake_mcu_press(const char *device)
 {
-	pthread_mutex_lock(&devices_lock);
-	struct device *d = mcu_device(device);
-	int r = !d ? -EINVAL : !d->model ? -ENOTCONN : fscan_mcu_model_press(d->model);
-	pthread_mutex_unlock(&devices_lock);
-	return r;
+	return on_model(device, fscan_mcu_model_press);
 }
 
 int fscan_serial_fake_mcu_unplug_on_fire(const char *device)
 {
-	pthread_mutex_lock(&devices_lock);
-	struct device *d = mcu_device(device);
-	int r = !d ? -EINVAL : !d->model ? -ENOTCONN : fscan_mcu_model_hangup_on_sequence(d->model);
-	pthread_mutex_unlock(&devices_lock);
-	return r;
+	return on_model(device, fscan_mcu_model_hangup_on_sequence);
 }
 
 int fscan_serial_fake_mcu_scans(const char *device)

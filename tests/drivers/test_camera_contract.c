@@ -124,6 +124,14 @@ static void collect_pattern_and_texture(struct fscan_camera *cam, uint32_t first
 	assert_null(set);
 }
 
+/* After a fault: disarmed, the fault gone, the next scan is whole. */
+static void back_to_healthy(struct bench *b)
+{
+	assert_int_equal(fscan_camera_disarm(b->cam), 0);
+	b->sim = healthy;
+	collect_pattern_and_texture(b->cam, 2);
+}
+
 static void contract_two_triggers(struct bench *b)
 {
 	collect_pattern_and_texture(b->cam, 0);
@@ -147,9 +155,7 @@ static void contract_never_delivers(struct bench *b)
 	assert_null(set);
 	assert_int_equal(fscan_camera_frame_status(b->cam, 2), -ETIMEDOUT);
 	assert_int_equal(fscan_camera_frame_status(b->cam, 0), 0);
-	assert_int_equal(fscan_camera_disarm(b->cam), 0);
-	b->sim = healthy;
-	collect_pattern_and_texture(b->cam, 2);
+	back_to_healthy(b);
 }
 
 static void contract_late_frame(struct bench *b)
@@ -161,9 +167,7 @@ static void contract_late_frame(struct bench *b)
 	assert_null(set);
 	assert_int_equal(fscan_camera_frame_status(b->cam, 1), -EXDEV);
 	assert_int_equal(fscan_camera_frame_status(b->cam, 0), 0);
-	assert_int_equal(fscan_camera_disarm(b->cam), 0);
-	b->sim = healthy;
-	collect_pattern_and_texture(b->cam, 2);
+	back_to_healthy(b);
 }
 
 static void run(enum backend backend, void (*contract)(struct bench *))

@@ -21,6 +21,7 @@
 #include <cmocka.h>
 
 #include "facescan/serial.h"
+#include "serial_helpers.h"
 #include "facescan/serial_fake.h"
 
 #define T 2000 /* ms: generous, the model answers in microseconds */
@@ -309,19 +310,6 @@ static void test_pty_hangup_while_waiting(void **s) { (void)s; contract_hangup_w
 
 /* ---- the fake device with the MCU attached ---- */
 
-/* The next event of `type`, skipping others (the boot greeting, a button). */
-static int next_event_of(struct fscan_serial *link, uint8_t type, struct fs_frame *ret)
-{
-	for (int i = 0; i < 10; i++) {
-		int r = fscan_serial_next_event(link, ret, T);
-		if (r < 0)
-			return r;
-		if (ret->type == type)
-			return 0;
-	}
-	return -ENOMSG;
-}
-
 static void test_fake_device_with_mcu(void **s)
 {
 	(void)s;
@@ -337,21 +325,21 @@ static void test_fake_device_with_mcu(void **s)
 	assert_int_equal(fscan_serial_fake_attach_mcu(dev), -EBUSY);
 	/* The firmware boots on the connection and answers as itself. */
 	struct fs_frame ev;
-	assert_int_equal(next_event_of(link, FS_EVT_BOOT, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_BOOT, &ev, T), 0);
 	struct fs_hello h;
 	assert_int_equal(fscan_serial_hello(link, &h, T), 0);
 	assert_int_equal(h.board, FS_BOARD_NATIVE);
 	/* A host-fired sequence is counted; a press is the firmware's debounced press. */
 	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
-	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev, T), 0);
 	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 1);
 	assert_int_equal(fscan_serial_fake_mcu_press(dev), 0);
-	assert_int_equal(next_event_of(link, FS_EVT_BUTTON, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_BUTTON, &ev, T), 0);
 	/* The link lost mid-sequence: the fire is acknowledged (the sequence started), then a
 	 * hangup comes instead of the report, and the device stays unplugged. */
 	assert_int_equal(fscan_serial_fake_mcu_unplug_on_fire(dev), 0);
 	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
-	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), -ENOTCONN);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev, T), -ENOTCONN);
 	assert_int_equal(fscan_serial_hello(link, &h, T), -ENOTCONN);
 	assert_int_equal(fscan_serial_fake_mcu_press(dev), -ENOTCONN);
 	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 1); /* that one never completed */
@@ -369,7 +357,7 @@ static void test_fake_device_with_mcu(void **s)
 	assert_int_equal(fscan_serial_fake_device_plug(dev), 0);
 	assert_int_equal(fscan_serial_hello(link, &h, T), 0);
 	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
-	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev, T), 0);
 	assert_int_equal(fscan_serial_fake_mcu_scans(dev), 2); /* over every connection */
 	struct fscan_serial_stats stats;
 	fscan_serial_get_stats(link, &stats);

@@ -21,6 +21,7 @@
 #include <cmocka.h>
 
 #include "facescan/serial.h"
+#include "serial_helpers.h"
 
 #define T 2000
 
@@ -58,18 +59,6 @@ static void stop_firmware(pid_t pid)
 	assert_int_equal(waitpid(pid, &status, 0), pid);
 }
 
-static int next_event_of(struct fscan_serial *link, uint8_t type, struct fs_frame *ret)
-{
-	for (int i = 0; i < 10; i++) {
-		int r = fscan_serial_next_event(link, ret, T);
-		if (r < 0)
-			return r;
-		if (ret->type == type)
-			return 0;
-	}
-	return -ENOMSG;
-}
-
 static void test_firmware_session(void **state)
 {
 	(void)state;
@@ -98,7 +87,7 @@ static void test_firmware_session(void **state)
 	/* A host-fired sequence: ACK, then the report with the steps at the set timing. */
 	assert_int_equal(fscan_serial_command(link, FS_CMD_FIRE, T), 0);
 	struct fs_frame ev;
-	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev, T), 0);
 	struct fs_report rep;
 	assert_int_equal(fs_report_get(&ev, &rep), 0);
 	assert_int_equal(rep.result, FS_REPORT_DONE);
@@ -115,11 +104,11 @@ static void test_firmware_session(void **state)
 	fs_frame_init(&cmd, FS_CMD_DEBUG_BUTTON, 0);
 	fs_debug_button_put(&cmd, 100);
 	assert_int_equal(fscan_serial_request(link, &cmd, NULL, T), 0);
-	assert_int_equal(next_event_of(link, FS_EVT_BUTTON, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_BUTTON, &ev, T), 0);
 	struct fs_button btn;
 	assert_int_equal(fs_button_get(&ev, &btn), 0);
 	assert_int_equal(btn.started, 1);
-	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev), 0);
+	assert_int_equal(next_event_of(link, FS_EVT_REPORT, &ev, T), 0);
 	assert_int_equal(fs_report_get(&ev, &rep), 0);
 	assert_int_equal(rep.trigger, FS_TRIGGER_BUTTON);
 
