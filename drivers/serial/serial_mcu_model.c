@@ -38,7 +38,7 @@ struct fscan_mcu_model {
 	/* Shared with the API (under lock). */
 	bool mute;
 	bool hangup_armed; /* hang up once the next sequence has started */
-	bool hung_up;
+	int hung_up;       /* 1 once it did (int: read through get_shared) */
 	int scans;
 	/* Thread-only state. */
 	uint64_t start_us; /* host clock at start */
@@ -114,7 +114,7 @@ static bool poll_core(struct fscan_mcu_model *m)
 	/* Noted before the host can see the hangup, so that its reopen finds the cable pulled. */
 	pthread_mutex_lock(&m->lock);
 	m->hangup_armed = false;
-	m->hung_up = true;
+	m->hung_up = 1;
 	pthread_mutex_unlock(&m->lock);
 	shutdown(m->fd, SHUT_RDWR);
 	return true;
@@ -276,14 +276,26 @@ int fscan_mcu_model_press(struct fscan_mcu_model *model)
 	return poke(model, 'p');
 }
 
+/* The API's view of the state shared with the thread: each read or write under the lock. */
+static int set_shared(struct fscan_mcu_model *m, bool *field, bool value)
+{
+	pthread_mutex_lock(&m->lock);
+	*field = value;
+	pthread_mutex_unlock(&m->lock);
+	return 0;
+}
+
+static int get_shared(struct fscan_mcu_model *m, const int *field)
+{
+	pthread_mutex_lock(&m->lock);
+	int r = *field;
+	pthread_mutex_unlock(&m->lock);
+	return r;
+}
+
 int fscan_mcu_model_set_mute(struct fscan_mcu_model *model, bool mute)
 {
-	if (!model)
-		return -EINVAL;
-	pthread_mutex_lock(&model->lock);
-	model->mute = mute;
-	pthread_mutex_unlock(&model->lock);
-	return 0;
+	return model ? set_shared(model, &model->mute, mute) : -EINVAL;
 }
 
 int fscan_mcu_model_hangup_on_sequence(struct fscan_mcu_model *model)
@@ -294,28 +306,15 @@ int fscan_mcu_model_hangup_on_sequence(struct fscan_mcu_model *model)
 	socklen_t len = sizeof(type);
 	if (getsockopt(model->fd, SOL_SOCKET, SO_TYPE, &type, &len) < 0)
 		return -errno;
-	pthread_mutex_lock(&model->lock);
-	model->hangup_armed = true;
-	pthread_mutex_unlock(&model->lock);
-	return 0;
+	return set_shared(model, &model->hangup_armed, true);
 }
 
 int fscan_mcu_model_hung_up(struct fscan_mcu_model *model)
 {
-	if (!model)
-		return -EINVAL;
-	pthread_mutex_lock(&model->lock);
-	int r = model->hung_up;
-	pthread_mutex_unlock(&model->lock);
-	return r;
+	return model ? get_shared(model, &model->hung_up) : -EINVAL;
 }
 
 int fscan_mcu_model_scans(struct fscan_mcu_model *model)
 {
-	if (!model)
-		return -EINVAL;
-	pthread_mutex_lock(&model->lock);
-	int n = model->scans;
-	pthread_mutex_unlock(&model->lock);
-	return n;
+	return model ? get_shared(model, &model->scans) : -EINVAL;
 }
