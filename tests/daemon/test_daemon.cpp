@@ -87,8 +87,7 @@ struct FakeMcuDevice {
 struct Rig {
 	std::string dir;
 	Config cfg;
-	FakeMcuDevice mcu_device;
-	FakeMcuDevice *mcu = &mcu_device;
+	FakeMcuDevice mcu;
 	DriverCameras *cams = nullptr;
 	FakeReconstructor *recon = nullptr;
 	std::unique_ptr<Daemon> d;
@@ -117,7 +116,7 @@ struct Rig {
 		cfg.client_timeout_ms = client_timeout_ms;
 		cfg.camera_count = 4;
 		Backends b = fake_booth(cfg);
-		mcu_device.name = cfg.serial_device;
+		mcu.name = cfg.serial_device;
 		cams = dynamic_cast<DriverCameras *>(b.cameras.get());
 		recon = dynamic_cast<FakeReconstructor *>(b.recon.get());
 		assert_non_null(cams);
@@ -315,12 +314,12 @@ static void test_socket_mode_and_busy(void **)
 	assert_false(second["ok"].get<bool>());
 	assert_string_equal(second["error"].get<std::string>().c_str(), "busy");
 	// a button press during a scan starts nothing either
-	rig.mcu->press_button();
+	rig.mcu.press_button();
 	json status = rig.ask({{"cmd", "status"}});
 	assert_string_equal(status["scan_id"].get<std::string>().c_str(), first["scan_id"].get<std::string>().c_str());
 	assert_true(rig.wait_state(State::idle));
 	std::this_thread::sleep_for(std::chrono::milliseconds(200));
-	assert_int_equal(rig.mcu->fired(), 1);
+	assert_int_equal(rig.mcu.fired(), 1);
 	json last = rig.ask({{"cmd", "last"}});
 	assert_string_equal(last["last"]["state"].get<std::string>().c_str(), "delivered");
 	// the next one is welcome
@@ -367,15 +366,15 @@ static void test_malformed_and_oversize(void **)
 		assert_false(r["ok"].get<bool>());
 		assert_string_equal(r["error"].get<std::string>().c_str(), "bad_patient_id");
 	}
-	assert_int_equal(rig.mcu->fired(), 1);
+	assert_int_equal(rig.mcu.fired(), 1);
 }
 
 static void test_booth_button(void **)
 {
 	Rig rig(Mode::booth);
 	// a press with nothing armed: a walk-in scan
-	rig.mcu->press_button();
-	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu->fired() == 1);
+	rig.mcu.press_button();
+	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu.fired() == 1);
 	assert_true(rig.wait_state(State::idle));
 	json last = rig.ask({{"cmd", "last"}});
 	assert_string_equal(last["last"]["patient_id"].get<std::string>().c_str(), "walk-in");
@@ -391,7 +390,7 @@ static void test_booth_button(void **)
 	std::this_thread::sleep_for(std::chrono::milliseconds(100));
 	last = rig.ask({{"cmd", "last"}});
 	assert_string_equal(last["last"]["patient_id"].get<std::string>().c_str(), "BOOTH-7");
-	assert_int_equal(rig.mcu->fired(), 2);
+	assert_int_equal(rig.mcu.fired(), 2);
 	// armed then cancelled; armed then timed out
 	rig.ask({{"cmd", "scan"}, {"patient", "CANCEL-ME"}});
 	assert_true(rig.ask({{"cmd", "cancel"}})["ok"].get<bool>());
@@ -400,7 +399,7 @@ static void test_booth_button(void **)
 	std::this_thread::sleep_for(std::chrono::milliseconds(1300));
 	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::idle));
 	assert_string_equal(rig.ask({{"cmd", "last"}})["last"]["state"].get<std::string>().c_str(), "cancelled");
-	assert_int_equal(rig.mcu->fired(), 2);
+	assert_int_equal(rig.mcu.fired(), 2);
 	assert_no_log_mentions("BOOTH-7");
 }
 
@@ -415,9 +414,9 @@ static void test_gpio_button_and_led(void **)
 	assert_int_equal(fscan_gpio_create(&fscan_gpio_fake_ops, &g, &gpio), 0);
 	Rig rig(Mode::booth, 0, gpio);
 	// The MCU's own button input is ignored when the booth button is a GPIO line.
-	rig.mcu->press_button();
+	rig.mcu.press_button();
 	std::this_thread::sleep_for(std::chrono::milliseconds(200));
-	assert_int_equal(rig.mcu->fired(), 0);
+	assert_int_equal(rig.mcu.fired(), 0);
 	json armed = rig.ask({{"cmd", "scan"}, {"patient", "GPIO-1"}});
 	assert_string_equal(armed["state"].get<std::string>().c_str(), "armed");
 	assert_int_equal(fscan_gpio_fake_output(gpio, FSCAN_GPIO_LED), 1); // LED on while armed
@@ -425,13 +424,13 @@ static void test_gpio_button_and_led(void **)
 	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
 	assert_int_equal(fscan_gpio_fake_button(gpio, false), 0);
 	std::this_thread::sleep_for(std::chrono::milliseconds(200));
-	assert_int_equal(rig.mcu->fired(), 0);
+	assert_int_equal(rig.mcu.fired(), 0);
 	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
 	std::this_thread::sleep_for(std::chrono::milliseconds(60));
 	assert_int_equal(fscan_gpio_fake_button(gpio, false), 0);
-	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu->fired() == 1);
+	assert_true(rig.wait_state(State::capturing, 2000) || rig.mcu.fired() == 1);
 	assert_true(rig.wait_state(State::idle));
-	assert_int_equal(rig.mcu->fired(), 1);
+	assert_int_equal(rig.mcu.fired(), 1);
 	assert_int_equal(fscan_gpio_fake_output(gpio, FSCAN_GPIO_LED), 0);
 	assert_string_equal(rig.ask({{"cmd", "last"}})["last"]["state"].get<std::string>().c_str(), "delivered");
 }
@@ -439,7 +438,7 @@ static void test_gpio_button_and_led(void **)
 static void test_mcu_unplugged_mid_scan(void **)
 {
 	Rig rig;
-	rig.mcu->unplug_on_fire();
+	rig.mcu.unplug_on_fire();
 	json done = rig.scan("UNPLUG-1");
 	assert_false(done["ok"].get<bool>());
 	assert_string_equal(done["scan"]["state"].get<std::string>().c_str(), "failed");
@@ -456,7 +455,7 @@ static void test_mcu_unplugged_mid_scan(void **)
 	// nothing reached the share
 	struct stat s;
 	assert_int_equal(stat((rig.cfg.share_dir + "/UNPLUG-1").c_str(), &s), -1);
-	rig.mcu->replug();
+	rig.mcu.replug();
 	assert_true(rig.wait_state(State::idle, 3000));
 	assert_true(rig.scan("UNPLUG-3")["ok"].get<bool>());
 }
@@ -464,10 +463,10 @@ static void test_mcu_unplugged_mid_scan(void **)
 static void test_mcu_unplugged_while_idle(void **)
 {
 	Rig rig;
-	rig.mcu->unplug();
+	rig.mcu.unplug();
 	assert_true(rig.wait_state(State::error, 2000));
 	assert_non_null(std::strstr(rig.ask({{"cmd", "status"}})["fault"].get<std::string>().c_str(), "MCU"));
-	rig.mcu->replug();
+	rig.mcu.replug();
 	assert_true(rig.wait_state(State::idle, 3000));
 }
 
@@ -677,7 +676,7 @@ static void test_unwritable_spool_refuses_before_capture(void **)
 	assert_false(r["ok"].get<bool>());
 	assert_string_equal(r["error"].get<std::string>().c_str(), "unavailable");
 	assert_non_null(std::strstr(r["message"].get<std::string>().c_str(), "not writable"));
-	assert_int_equal(rig.mcu->fired(), 0);
+	assert_int_equal(rig.mcu.fired(), 0);
 	assert_int_equal(static_cast<int>(rig.d->state()), static_cast<int>(State::idle));
 	unlink(queue.c_str());
 	mkdir(queue.c_str(), 0750);
