@@ -519,6 +519,13 @@ static void test_check_capture_skew(void **)
 	Capture c;
 	assert_true(cams.collect(r, 100, &c).ok());
 	assert_true(check_capture(c, 4, 1000).ok());
+	// A frame of another trigger, named with both numbers (the driver's fake is caught by the
+	// driver first: test_frames_from_different_triggers).
+	c.frames[1].trigger = 6;
+	facescan::Status mixed = check_capture(c, 4, 1000);
+	assert_int_equal(mixed.code(), -EPROTO);
+	assert_non_null(std::strstr(mixed.message().c_str(), "camera 1: frame of trigger 6, expected 5"));
+	c.frames[1].trigger = 5;
 	c.frames[2].timestamp_ns = c.frames[0].timestamp_ns + 2000000; // 2 ms after camera 0's
 	facescan::Status s = check_capture(c, 4, 1000);
 	assert_int_equal(s.code(), -EPROTO);
