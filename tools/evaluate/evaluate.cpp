@@ -20,7 +20,8 @@ static void evaluate_usage(FILE *out)
 		     "usage: facescan evaluate MESH CAPTURE_DIR [--rig FILE] [--json OUT.json]\n"
 		     "\n"
 		     "Compares MESH (.drc or .ply, mm) with CAPTURE_DIR/ground_truth.ply (a simulated\n"
-		     "capture set): distance of every mesh vertex to the true surface (RMS, median, p95,\n"
+		     "capture set): distance of every distinct mesh vertex position (a texture seam's\n"
+		     "duplicates count once) to the true surface (RMS, median, p95,\n"
 		     "max, mm) and completeness: the fraction of true surface points seen by >= 2 cameras\n"
 		     "and lit by a projector (through its slide mask, where the set records one) that\n"
 		     "lie within 1 mm of the mesh.\n"
@@ -162,6 +163,7 @@ int evaluate_main(int argc, char **argv)
 		    100.0 * r.completeness, r.truth_counted, params.completeness_mm);
 	if (!json_path.empty()) {
 		const nlohmann::json j = {{"vertices", r.vertices},	   {"face_vertices", r.face_vertices},	   {"triangles", r.triangles},
+					  {"unique_positions", r.unique_positions},
 					  {"rms_mm", r.rms_mm},		   {"median_mm", r.median_mm},
 					  {"p95_mm", r.p95_mm},		   {"max_mm", r.max_mm},
 					  {"completeness", r.completeness}, {"truth_points", r.truth_points},
