@@ -219,12 +219,16 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	std::vector<double> d;
 	d.reserve(order.size());
 	double ss = 0;
+	r.vertex_mm.assign(order.size(), 0.f);
 	for (size_t k = 0; k < order.size(); ++k) {
-		if (k > 0 && key(order[k]) == key(order[k - 1]))
+		if (k > 0 && key(order[k]) == key(order[k - 1])) {
+			r.vertex_mm[order[k]] = r.vertex_mm[order[k - 1]];
 			continue;
+		}
 		const double e = std::min(
 			to_truth.distance(cv::Point3d(recon.positions[order[k]]), params.max_search_mm),
 			params.max_search_mm);
+		r.vertex_mm[order[k]] = float(e);
 		d.push_back(e);
 		ss += e * e;
 	}

@@ -97,6 +97,11 @@ static void test_duplicates_count_once(void **)
 	assert_int_equal(many.unique_positions, once.unique_positions);
 	assert_true(std::fabs(many.rms_mm - once.rms_mm) < 1e-12);
 	assert_true(once.max_mm > 4.9 && once.rms_mm < 0.25);
+	// Per vertex (facescan evaluate --errors): every copy carries the distance.
+	assert_int_equal(many.vertex_mm.size(), dup.positions.size());
+	assert_true(std::fabs(many.vertex_mm[0] - once.max_mm) < 1e-6); // the vertex off the surface
+	assert_true(std::fabs(many.vertex_mm.back() - many.vertex_mm[0]) < 1e-6);
+	assert_true(std::fabs(many.vertex_mm[5000] - 0.2) < 0.01);
 }
 
 int main(void)
