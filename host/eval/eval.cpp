@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <tuple>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -205,13 +206,33 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		edge += cv::norm(truth.positions[size_t(t[0])] - truth.positions[size_t(t[1])]);
 	edge /= double(truth.triangles.size());
 	const MeshDistance to_truth(truth.positions, truth.triangles, std::max(2.0 * edge, 1.0));
-	std::vector<double> d(recon.positions.size());
+	// Each position once: the texture atlas duplicates a vertex on every chart seam (same
+	// position, one UV per chart), which would count a seam's error twice or more.
+	std::vector<size_t> order(recon.positions.size());
+	for (size_t i = 0; i < order.size(); ++i)
+		order[i] = i;
+	auto key = [&](size_t i) {
+		const cv::Point3f &p = recon.positions[i];
+		return std::make_tuple(p.x, p.y, p.z);
+	};
+	std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return key(a) < key(b); });
+	std::vector<double> d;
+	d.reserve(order.size());
 	double ss = 0;
-	for (size_t i = 0; i < d.size(); ++i) {
-		d[i] = std::min(to_truth.distance(cv::Point3d(recon.positions[i]), params.max_search_mm),
-				params.max_search_mm);
-		ss += d[i] * d[i];
+	r.vertex_mm.assign(order.size(), 0.f);
+	for (size_t k = 0; k < order.size(); ++k) {
+		if (k > 0 && key(order[k]) == key(order[k - 1])) {
+			r.vertex_mm[order[k]] = r.vertex_mm[order[k - 1]];
+			continue;
+		}
+		const double e = std::min(
+			to_truth.distance(cv::Point3d(recon.positions[order[k]]), params.max_search_mm),
+			params.max_search_mm);
+		r.vertex_mm[order[k]] = float(e);
+		d.push_back(e);
+		ss += e * e;
 	}
+	r.unique_positions = int(d.size());
 	r.rms_mm = std::sqrt(ss / double(d.size()));
 	std::sort(d.begin(), d.end());
 	r.median_mm = d[d.size() / 2];

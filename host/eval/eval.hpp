@@ -48,7 +48,12 @@ struct EvalParams {
 };
 
 struct EvalResult {
-	double rms_mm = 0, median_mm = 0, p95_mm = 0, max_mm = 0; // reconstruction vertex → truth
+	// Reconstruction vertex → truth, each distinct position once (a vertex the texture atlas
+	// duplicated on a chart seam counts once).
+	double rms_mm = 0, median_mm = 0, p95_mm = 0, max_mm = 0;
+	int unique_positions = 0;	// distinct vertex positions the figures above are over
+	/// Per reconstruction vertex: its distance to the truth, mm (capped at max_search_mm).
+	std::vector<float> vertex_mm;
 	double completeness = 0;	// fraction of counted truth points within completeness_mm
 	int truth_points = 0;		// truth vertices
 	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)

@@ -432,7 +432,7 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		dark[i] = ring_count[i] == 0 || region_grey[i] / area < ring_grey[i] / ring_count[i];
 	}
 	cv::Mat from_texture;
-	if (params.flat_dark_reach_px > 0) {
+	if (params.flat_dark_reach_px > 0 || params.flat_unfitted_reach_px > 0) {
 		const cv::Mat textured = valid & ~flat;
 		cv::distanceTransform(~textured, from_texture, cv::DIST_L2, 3);
 	}
@@ -446,13 +446,21 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 			const int l = lr[x];
 			if (l <= 0)
 				continue;
-			if (fr && dark[size_t(l)] && fr[x] > float(params.flat_dark_reach_px)) {
+			if (fr && dark[size_t(l)] && params.flat_dark_reach_px > 0 &&
+			    fr[x] > float(params.flat_dark_reach_px)) {
 				vr[x] = 0;
 				stats->flat_dropped++;
 				continue;
 			}
 			if (fit[size_t(l)] <= 0) {
-				stats->flat_kept++;
+				// Unfitted: SGBM's value holds only near the texture it was carried from.
+				if (fr && !dark[size_t(l)] && params.flat_unfitted_reach_px > 0 &&
+				    fr[x] > float(params.flat_unfitted_reach_px)) {
+					vr[x] = 0;
+					stats->flat_unfitted_dropped++;
+				} else {
+					stats->flat_kept++;
+				}
 				continue;
 			}
 			tr[x] = float(coef[size_t(l)].dot(basis(l, x, y)));

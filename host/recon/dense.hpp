@@ -81,6 +81,12 @@ struct DenseParams {
 	/// zones: no lit square) keeps its pixels only within this many pixels of a textured match;
 	/// farther, nothing in the pattern supports SGBM's guess and they are dropped. 0: kept.
 	double flat_dark_reach_px = 5;
+	/// A bright flat region whose ring fits no quadratic (a mismatched edge, a ring cut open by
+	/// the matched region's border) keeps SGBM's values only within this many pixels of a
+	/// textured match: deeper inside, SGBM's smoothness has carried a disparity in along a few
+	/// path directions from edges that disagree (random booths 111, 604: such points near the
+	/// pair's border RMS 0.7-0.8 mm, one in ten > 1 mm off). 0: kept.
+	double flat_unfitted_reach_px = 8;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -118,6 +124,7 @@ struct DenseStats {
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
 	int flat_filled = 0, flat_kept = 0; // flat-region pixels refilled / left as SGBM matched them
 	int flat_dropped = 0;		    // ... dropped: dark and out of the texture's reach
+	int flat_unfitted_dropped = 0;	    // ... dropped: bright, unfitted, out of the texture's reach
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
@@ -132,10 +139,11 @@ struct DenseStats {
 /// ring survive with an RMS of at most `flat_max_fit_px`. Other regions (a ring that fits no quadratic:
 /// a large unpatterned patch, a mismatch at the edge) keep SGBM's values — except that a region
 /// darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between projector
-/// zones) loses its pixels farther than `flat_dark_reach_px` from any textured match (cleared in
+/// zones) loses its pixels farther than `flat_dark_reach_px` from any textured match, and a bright
+/// one whose ring fits no quadratic those farther than `flat_unfitted_reach_px` (cleared in
 /// `valid`). `total` is the disparity (CV_32F), `valid` the matched mask (CV_8U), `grey_l` the
-/// left view (CV_8U). Returns the pixels refilled; counts them, the kept and the dropped ones in
-/// `stats`.
+/// left view (CV_8U). Returns the pixels refilled; counts them, the kept and the dropped ones
+/// (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted) in `stats`.
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
 		      cv::Mat *total, DenseStats *stats);
 

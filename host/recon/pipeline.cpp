@@ -342,6 +342,7 @@ std::string report_json(const ReconReport &r)
 				   {"flat_filled", p.dense.flat_filled},
 				   {"flat_kept", p.dense.flat_kept},
 				   {"flat_dropped", p.dense.flat_dropped},
+				   {"flat_unfitted_dropped", p.dense.flat_unfitted_dropped},
 				   {"at_search_edge", p.dense.at_search_edge},
 				   {"steep", p.dense.steep},
 				   {"rim", p.dense.rim},

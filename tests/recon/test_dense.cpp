@@ -416,6 +416,70 @@ static void dark_flat_regions_dropped_beyond_reach(void **)
 	}
 }
 
+// A bright flat region whose ring fits no quadratic (here: its ring straddles a 4 px step, so
+// 50 % of it agrees with any one fit) keeps SGBM's values only within `flat_unfitted_reach_px` of
+// a textured match; a lit square of the usual size (16 px: no pixel beyond 8 px of its edge)
+// loses nothing, and a fitted region of any size loses nothing.
+static void unfitted_flat_regions_dropped_beyond_reach(void **)
+{
+	const cv::Size size(160, 120);
+	const cv::Rect band(40, 20, 60, 80); // 60 x 80 px without texture
+	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F, cv::Scalar(12));
+	cv::Mat total(size, CV_32F, cv::Scalar(30));
+	total(cv::Rect(70, 0, 90, 120)).setTo(34); // a step through the band: no quadratic fits its ring
+	std_l(band).setTo(1);
+	cv::Mat grey(size, CV_8U, cv::Scalar(120));
+	grey(band).setTo(220); // lit: not the dark rule
+	DenseParams params;
+	cv::Mat v = valid.clone(), t = total.clone();
+	DenseStats stats;
+	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);
+	std::printf("unfitted flat region: %d px dropped of %d, %d kept\n", stats.flat_unfitted_dropped, band.area(),
+		    stats.flat_kept);
+	assert_int_equal(stats.flat_dropped, 0);
+	int wrong = 0;
+	for (int y = band.y; y < band.y + band.height; ++y)
+		for (int x = band.x; x < band.x + band.width; ++x) {
+			const int d = std::min({x - band.x + 1, band.x + band.width - x, y - band.y + 1,
+						band.y + band.height - y});
+			const bool kept = v.at<uchar>(y, x) != 0;
+			wrong += (d <= params.flat_unfitted_reach_px) != kept &&
+				 std::abs(d - params.flat_unfitted_reach_px) > 1;
+		}
+	assert_int_equal(wrong, 0);
+	assert_true(stats.flat_unfitted_dropped > (band.width - 20) * (band.height - 20));
+	assert_int_equal(stats.flat_unfitted_dropped + stats.flat_kept, band.area());
+	assert_int_equal(cv::countNonZero(v), size.area() - stats.flat_unfitted_dropped);
+	assert_true(cv::countNonZero(t != total) == 0); // what stays keeps its value
+	// A 16 px square with the same step: kept whole.
+	{
+		cv::Mat s16(size, CV_32F, cv::Scalar(12)), v16 = valid.clone(), t16 = total.clone();
+		s16(cv::Rect(62, 40, 16, 16)).setTo(1);
+		DenseStats st;
+		fill_flat_regions(grey, s16, params, &v16, &t16, &st);
+		assert_int_equal(st.flat_kept, 16 * 16);
+		assert_int_equal(st.flat_unfitted_dropped, 0);
+		assert_int_equal(cv::countNonZero(v16), size.area());
+	}
+	// No step: the ring fits, the band is refilled, nothing dropped.
+	{
+		cv::Mat v2 = valid.clone(), t2(size, CV_32F, cv::Scalar(30));
+		DenseStats st;
+		assert_int_equal(fill_flat_regions(grey, std_l, params, &v2, &t2, &st), band.area());
+		assert_int_equal(st.flat_unfitted_dropped, 0);
+		assert_int_equal(cv::countNonZero(v2), size.area());
+	}
+	// Switched off: kept.
+	DenseParams off = params;
+	off.flat_unfitted_reach_px = 0;
+	cv::Mat v3 = valid.clone(), t3 = total.clone();
+	DenseStats s3;
+	fill_flat_regions(grey, std_l, off, &v3, &t3, &s3);
+	assert_int_equal(s3.flat_unfitted_dropped, 0);
+	assert_int_equal(s3.flat_kept, band.area());
+	assert_int_equal(cv::countNonZero(v3), size.area());
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -427,6 +491,7 @@ int main(void)
 		cmocka_unit_test(dense_refuses_bad_input),
 		cmocka_unit_test(flat_squares_refilled_from_their_edges),
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
+		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(fusion_makes_one_sheet),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);

@@ -76,11 +76,40 @@ static void test_offset_surface(void **)
 	assert_int_equal(eval::evaluate(recon::Mesh(), truth, synth::ring(), {}, {}, &r).code(), -EINVAL);
 }
 
+// A vertex duplicated (a texture chart seam: same position, another UV) counts once: 100 copies of
+// one vertex 5 mm off change nothing against one copy of it.
+static void test_duplicates_count_once(void **)
+{
+	const recon::Mesh truth = sphere(85);
+	recon::Mesh recon = sphere(85.2);
+	recon.positions[0] = recon.positions[0] * float(90.2 / 85.2); // 5 mm off
+	eval::EvalResult once, many;
+	assert_true(eval::evaluate(recon, truth, synth::ring(), {}, eval::EvalParams(), &once).ok());
+	recon::Mesh dup = recon;
+	for (int k = 0; k < 100; ++k) {
+		dup.positions.push_back(recon.positions[0]);
+		dup.triangles.emplace_back(int(dup.positions.size()) - 1, 1, 2);
+	}
+	assert_true(eval::evaluate(dup, truth, synth::ring(), {}, eval::EvalParams(), &many).ok());
+	std::printf("one copy: RMS %.5f over %d; 101 copies: RMS %.5f over %d\n", once.rms_mm, once.unique_positions,
+		    many.rms_mm, many.unique_positions);
+	assert_int_equal(once.unique_positions, int(recon.positions.size()));
+	assert_int_equal(many.unique_positions, once.unique_positions);
+	assert_true(std::fabs(many.rms_mm - once.rms_mm) < 1e-12);
+	assert_true(once.max_mm > 4.9 && once.rms_mm < 0.25);
+	// Per vertex (facescan evaluate --errors): every copy carries the distance.
+	assert_int_equal(many.vertex_mm.size(), dup.positions.size());
+	assert_true(std::fabs(many.vertex_mm[0] - once.max_mm) < 1e-6); // the vertex off the surface
+	assert_true(std::fabs(many.vertex_mm.back() - many.vertex_mm[0]) < 1e-6);
+	assert_true(std::fabs(many.vertex_mm[5000] - 0.2) < 0.01);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_point_triangle_distance),
 		cmocka_unit_test(test_offset_surface),
+		cmocka_unit_test(test_duplicates_count_once),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

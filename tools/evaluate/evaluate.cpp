@@ -20,7 +20,8 @@ static void evaluate_usage(FILE *out)
 		     "usage: facescan evaluate MESH CAPTURE_DIR [--rig FILE] [--json OUT.json]\n"
 		     "\n"
 		     "Compares MESH (.drc or .ply, mm) with CAPTURE_DIR/ground_truth.ply (a simulated\n"
-		     "capture set): distance of every mesh vertex to the true surface (RMS, median, p95,\n"
+		     "capture set): distance of every distinct mesh vertex position (a texture seam's\n"
+		     "duplicates count once) to the true surface (RMS, median, p95,\n"
 		     "max, mm) and completeness: the fraction of true surface points seen by >= 2 cameras\n"
 		     "and lit by a projector (through its slide mask, where the set records one) that\n"
 		     "lie within 1 mm of the mesh.\n"
@@ -29,6 +30,9 @@ static void evaluate_usage(FILE *out)
 		     "                   facescan simulate), else the built-in default rig\n"
 		     "  --within MM      completeness distance (default 1 mm)\n"
 		     "  --json OUT.json  also write the numbers as JSON\n"
+		     "  --errors OUT.ply the reconstruction coloured by each vertex's distance to the\n"
+		     "                   truth: green <= 0.3 mm, yellow <= 0.6, orange <= 1, red <= 2,\n"
+		     "                   magenta beyond (where the RMS comes from)\n"
 		     "  --coverage OUT.ply  the truth mesh coloured by completeness: green covered,\n"
 		     "                   red missed, grey not counted (seen by < 2 cameras or unlit)\n"
 		     "  --report R.json  the recon report of MESH (facescan recon --report), and\n"
@@ -43,9 +47,10 @@ int evaluate_main(int argc, char **argv)
 					 {"report", required_argument, nullptr, 'R'},
 					 {"markdown", required_argument, nullptr, 'm'},
 					 {"coverage", required_argument, nullptr, 'c'},
+					 {"errors", required_argument, nullptr, 'e'},
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
-	std::string rig_path, json_path, report_path, row_name, coverage_path;
+	std::string rig_path, json_path, report_path, row_name, coverage_path, errors_path;
 	eval::EvalParams params;
 	optind = 1;
 	for (int opt; (opt = getopt_long(argc, argv, "h", options, nullptr)) != -1;) {
@@ -64,6 +69,9 @@ int evaluate_main(int argc, char **argv)
 			break;
 		case 'c':
 			coverage_path = optarg;
+			break;
+		case 'e':
+			errors_path = optarg;
 			break;
 		case 'w': {
 			char *end = nullptr;
@@ -116,6 +124,27 @@ int evaluate_main(int argc, char **argv)
 		std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
 		return 1;
 	}
+	if (!errors_path.empty()) {
+		// Where the RMS comes from: each vertex by its distance to the truth (BGR colours).
+		recon::Mesh coloured;
+		coloured.positions = mesh.positions;
+		coloured.triangles = mesh.triangles;
+		coloured.normals = mesh.normals;
+		coloured.colours.resize(mesh.positions.size());
+		for (size_t i = 0; i < mesh.positions.size(); ++i) {
+			const float e = r.vertex_mm[i];
+			coloured.colours[i] = e <= 0.3f ? cv::Vec3b(60, 200, 60)
+					      : e <= 0.6f ? cv::Vec3b(40, 220, 220)
+					      : e <= 1.0f ? cv::Vec3b(30, 140, 250)
+					      : e <= 2.0f ? cv::Vec3b(40, 40, 230)
+							  : cv::Vec3b(230, 40, 230);
+		}
+		s = mesh_io::write_ply(errors_path, coloured);
+		if (!s.ok()) {
+			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+			return 1;
+		}
+	}
 	if (!coverage_path.empty()) {
 		// Where completeness is lost, to look at in a mesh viewer (BGR colours).
 		truth.colours.resize(truth.positions.size());
@@ -162,6 +191,7 @@ int evaluate_main(int argc, char **argv)
 		    100.0 * r.completeness, r.truth_counted, params.completeness_mm);
 	if (!json_path.empty()) {
 		const nlohmann::json j = {{"vertices", r.vertices},	   {"face_vertices", r.face_vertices},	   {"triangles", r.triangles},
+					  {"unique_positions", r.unique_positions},
 					  {"rms_mm", r.rms_mm},		   {"median_mm", r.median_mm},
 					  {"p95_mm", r.p95_mm},		   {"max_mm", r.max_mm},
 					  {"completeness", r.completeness}, {"truth_points", r.truth_points},
