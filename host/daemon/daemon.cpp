@@ -165,6 +165,31 @@ struct Daemon::Impl {
 		state_pub = sm.state();
 	}
 
+	// Applies an event the loop has already decided is legal. A refusal here is a bug in the
+	// daemon, not in the booth: it is logged with the state and the event, and the booth goes
+	// to error (failed or fault, whichever the state allows) so the operator sees it and the
+	// recovery timer brings it back to idle. Not an assert: a booth daemon must stay up, and a
+	// release build would otherwise carry on in a state nobody chose.
+	void transition(Event e)
+	{
+		Status s = sm.apply(e);
+		if (s.ok()) {
+			set_state_pub();
+			return;
+		}
+		log(LOG_ERR, "bug: event %s refused in state %s: %s", event_name(e), state_name(sm.state()),
+		    s.message().c_str());
+		if (sm.state() != State::error) {
+			Status f = sm.apply(sm.busy() && sm.state() != State::armed ? Event::failed : Event::fault);
+			if (f.ok()) {
+				fault = std::string("internal error: event ") + event_name(e) + " in state " +
+					state_name(sm.state());
+				next_recover = Clock::now();
+			}
+		}
+		set_state_pub();
+	}
+
 	void post(Msg m)
 	{
 		{
@@ -440,8 +465,7 @@ struct Daemon::Impl {
 				break;
 			}
 			be.mcu->abort();
-			sm.apply(Event::disarm);
-			set_state_pub();
+			transition(Event::disarm);
 			progress("cancelled", "cancelled before the trigger");
 			finish_record("cancelled", "");
 			send_line(c, {{"ok", true}, {"state", state_name(sm.state())}});
@@ -545,10 +569,11 @@ struct Daemon::Impl {
 
 	void fire()
 	{
-		Status s = sm.apply(Event::fire);
-		if (!s.ok())
+		if (sm.state() != State::armed) {
+			log(LOG_ERR, "bug: fire in state %s", state_name(sm.state()));
 			return;
-		set_state_pub();
+		}
+		transition(Event::fire);
 		stage_start = Clock::now();
 		current["state"] = "capturing";
 		progress("capturing", "[1/3] capturing");
@@ -601,8 +626,7 @@ struct Daemon::Impl {
 	void fail_scan(const std::string &stage, const std::string &why, bool hardware)
 	{
 		current["failed_stage"] = stage;
-		sm.apply(Event::failed);
-		set_state_pub();
+		transition(Event::failed);
 		fault = why;
 		hardware_fault = hardware;
 		log(LOG_ERR, "scan %s: failed while %s: %s", sid().c_str(), stage.c_str(), why.c_str());
@@ -796,8 +820,7 @@ struct Daemon::Impl {
 		switch (m.kind) {
 		case Msg::Kind::captured:
 			mcu_with_worker = false;
-			sm.apply(Event::captured);
-			set_state_pub();
+			transition(Event::captured);
 			stage_start = Clock::now();
 			current["stage_ms"]["capture"] = m.ms;
 			current["trigger_report"] = m.data["trigger_report"];
@@ -805,8 +828,7 @@ struct Daemon::Impl {
 			progress("reconstructing", m.text + "; [2/3] reconstructing");
 			break;
 		case Msg::Kind::reconstructed:
-			sm.apply(Event::reconstructed);
-			set_state_pub();
+			transition(Event::reconstructed);
 			stage_start = Clock::now();
 			current["stage_ms"]["reconstruct"] = m.ms;
 			current["vertices"] = m.data["vertices"];
@@ -825,8 +847,7 @@ struct Daemon::Impl {
 			break;
 		case Msg::Kind::finished: {
 			join_worker_if_done(true);
-			sm.apply(Event::written);
-			set_state_pub();
+			transition(Event::written);
 			current["stage_ms"]["write"] = m.data["write_ms"];
 			current["files"] = m.data["files"];
 			const std::string outcome = m.data["outcome"];
@@ -894,8 +915,7 @@ struct Daemon::Impl {
 				return;
 			}
 		}
-		sm.apply(Event::recovered);
-		set_state_pub();
+		transition(Event::recovered);
 		fault.clear();
 		hardware_fault = false;
 		log(LOG_INFO, "recovered: idle");
@@ -924,8 +944,8 @@ struct Daemon::Impl {
 				be.mcu->close();
 				if (sm.state() == State::armed) {
 					fail_scan("armed", "MCU link lost", true);
-				} else if (sm.apply(Event::fault).ok()) {
-					set_state_pub();
+				} else if (sm.state() == State::idle) {
+					transition(Event::fault);
 					fault = "MCU link lost";
 					hardware_fault = false;
 					notify("STATUS=error: MCU link lost");
@@ -940,8 +960,7 @@ struct Daemon::Impl {
 		auto now = Clock::now();
 		if (sm.state() == State::armed && now >= arm_deadline) {
 			be.mcu->abort();
-			sm.apply(Event::disarm);
-			set_state_pub();
+			transition(Event::disarm);
 			log(LOG_INFO, "scan %s: no button press within %d ms, disarmed", sid().c_str(), cfg.arm_timeout_ms);
 			finish_record("cancelled", "no button press in time");
 		}
@@ -1163,7 +1182,7 @@ Status Daemon::start()
 	s = d.be.cameras->open();
 	if (!s.ok()) {
 		log(LOG_ERR, "cameras: %s", s.message().c_str());
-		d.sm.apply(Event::fault);
+		d.transition(Event::fault);
 		d.fault = "cameras: " + s.message();
 		d.hardware_fault = true;
 	}
@@ -1171,7 +1190,7 @@ Status Daemon::start()
 	if (!m.ok()) {
 		log(LOG_ERR, "MCU: %s", m.message().c_str());
 		if (d.sm.state() != State::error)
-			d.sm.apply(Event::fault);
+			d.transition(Event::fault);
 		d.fault = "MCU: " + m.message();
 	} else {
 		log(LOG_INFO, "MCU connected: %s", d.be.mcu->firmware_version().c_str());
