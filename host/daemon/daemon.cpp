@@ -592,8 +592,12 @@ struct Daemon::Impl {
 			d.push_back({next_recover, &Impl::try_recover});
 		if (!sm.busy() && !worker.running() && (spool.pending() > 0 || clinic::pacs_pending(cfg)))
 			d.push_back({next_delivery, &Impl::start_delivery});
-		if (mcu_is_ours() && be.mcu->event_fd() < 0)
-			d.push_back({next_mcu_poll, &Impl::on_mcu});
+		if (mcu_is_ours()) {
+			if (be.mcu->event_fd() < 0)
+				d.push_back({next_mcu_poll, &Impl::on_mcu});
+			else if (be.mcu->events_queued())
+				d.push_back({Clock::now(), &Impl::on_mcu}); // the fd would not wake us for these
+		}
 		if (watchdog_usec)
 			d.push_back({next_ping, &Impl::ping_watchdog});
 		if (auto t = control.next_deadline())
