@@ -615,7 +615,8 @@ struct Daemon::Impl {
 
 	void fire_due()
 	{
-		// One at a time, the table rebuilt after each: an action changes what is armed.
+		// One at a time, the table rebuilt after each: an action changes what is armed. At most
+		// 16 a turn, so that a deadline that failed to move itself cannot starve the sockets.
 		for (int n = 0; n < 16; n++) {
 			auto now = Clock::now();
 			const Deadline *due = nullptr;
