@@ -54,9 +54,16 @@ public:
 	/// Aborts an armed or running sequence (lights off). Best effort.
 	virtual Status abort() = 0;
 	/// A file descriptor that becomes readable when events may be pending, or -1 (poll often).
+	/// It may change across open(); the loop asks again before each poll().
 	virtual int event_fd() const
 	{
 		return -1;
+	}
+	/// True when events wait inside the backend where event_fd() does not show them (read while
+	/// a command waited for its answer): the loop collects them before it polls again.
+	virtual bool events_queued() const
+	{
+		return false;
 	}
 	/// Collects pending events without blocking. A lost link shows as a `disconnected` event.
 	virtual Status poll_events(std::vector<McuEvent> *ret_events) = 0;

@@ -1,36 +1,35 @@
+// The event loop of facescand and the scan it drives. The parts with one job each live beside
+// it: ControlServer (the socket and its clients), ScanJournal (current.json / last.json and
+// crash recovery), Worker (the scan's slow stages and deliveries, in a thread), Spool, and the
+// StateMachine. This file owns the state of the booth and is the only one that changes it.
+//
+// One poll() waits on one source per handler: the worker's mailbox, the listening socket, the
+// MCU's event fd (when the backend has one) and each client; then the deadlines that are due
+// fire, from one table (deadlines()) that also gives poll its timeout. Nothing in the loop
+// waits for the worker: its jobs end with a message, and the loop acts on that message.
 #include "daemon/daemon.hpp"
 
-#include "capture/capture_set.hpp"
 #include "common/version.hpp"
-#include "daemon/control.hpp"
+#include "daemon/clinic_output.hpp"
+#include "daemon/control_server.hpp"
 #include "daemon/log.hpp"
 #include "daemon/output.hpp"
-#include "daemon/clinic_output.hpp"
-#include "viewer/viewer.hpp"
 #include "daemon/patient_id.hpp"
+#include "daemon/scan_job.hpp"
+#include "daemon/scan_journal.hpp"
 #include "daemon/spool.hpp"
+#include "viewer/viewer.hpp"
 
 #include <nlohmann/json.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
-#include <deque>
 #include <fcntl.h>
-#include <fstream>
-#include <grp.h>
-#include <mutex>
 #include <poll.h>
-#include <sstream>
-#include <sys/eventfd.h>
 #include <sys/file.h>
-#include <sys/socket.h>
-#include <sys/stat.h>
-#include <sys/un.h>
-#include <thread>
 #include <unistd.h>
 
 namespace facescan::daemon {
@@ -40,9 +39,8 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-constexpr int kMaxClients = 32;
 constexpr int kRecoverEveryMs = 1000;
-constexpr int kMcuPollMs = 50;
+constexpr int kMcuPollMs = 50;  // only for an MCU backend without an event fd
 
 double ms_since(Clock::time_point t)
 {
@@ -85,34 +83,6 @@ Status take_lock(const std::string &path, const std::string &what, int *ret_fd)
 	return Status();
 }
 
-// A state file of ours (a few kB): parsed if it is a regular file under 1 MiB, else null.
-json read_small_json(const std::string &path)
-{
-	std::string text;
-	if (!read_regular_file(path, 1 << 20, &text).ok())
-		return json();
-	return json::parse(text, nullptr, false, true);
-}
-
-// What the worker tells the loop.
-struct Msg {
-	enum class Kind { captured, reconstructed, finished, failed, delivered } kind;
-	double ms = 0;
-	std::string text;
-	bool hardware = false;  // failed: the booth itself is suspect (MCU, cameras)
-	json data;
-};
-
-struct Client {
-	int fd = -1;
-	LineReader reader;
-	std::string wait_scan;  // scan id whose progress this client follows
-	// A whole request must arrive by then, however slowly its bytes trickle in (slowloris);
-	// renewed after each request. A client following a scan is exempt.
-	Clock::time_point deadline;
-	bool closing = false;
-};
-
 } // namespace
 
 struct Daemon::Impl {
@@ -123,58 +93,67 @@ struct Daemon::Impl {
 	std::atomic<State> state_pub{State::idle};
 	std::function<void(const std::string &)> notify = [](const std::string &) {};
 	uint64_t watchdog_usec = 0;
-
-	int listen_fd = -1;
-	int wake_fd = -1;
+	std::atomic<bool> stop{false};
 	int lock_fd = -1;        // flock on <spool>/facescand.lock: one daemon per spool
 	int socket_lock_fd = -1; // flock on <socket>.lock: one daemon per socket
-	Clock::time_point next_refusal_log;
-	long refusals_unlogged = 0;
-	std::atomic<bool> stop{false};
-	std::vector<std::unique_ptr<Client>> clients;
 
-	// the scan in flight (or the last one)
-	json current;          // the record `last` reports
-	json last;             // the last finished scan
-	std::string fault;     // why we are in error
+	ControlServer control{cfg, [this](Client &c, const Request &r) { on_request(c, r); }};
+	ScanJournal journal{spool};
+	Mailbox mailbox;
+	Worker worker{cfg, be, spool, mailbox};  // after what it uses: destroyed (joined) first
+	viewer::Server viewer; // the web viewer of the share, when viewer_port is set
+
+	// the scan in flight
+	json current;            // its record: what `last` reports once it ends
+	std::string fault;       // why we are in error
 	bool hardware_fault = false;
+	bool mcu_with_worker = false; // the worker fires the MCU: the loop leaves it alone
+	bool capture_waits = false;   // fired while a delivery ran: the capture starts when it ends
 	Clock::time_point stage_start = Clock::now();
+
+	// the deadlines (see deadlines())
 	Clock::time_point arm_deadline;
 	Clock::time_point next_recover = Clock::now();
 	Clock::time_point next_delivery = Clock::now();
 	Clock::time_point next_mcu_poll = Clock::now();
 	Clock::time_point next_ping = Clock::now();
-	bool mcu_with_worker = false;
-
-	viewer::Server viewer; // the web viewer of the share, when viewer_port is set
-	std::thread worker;
-	bool worker_running = false;
-	bool worker_is_delivery = false;
-	std::mutex msg_mu;
-	std::deque<Msg> msgs;
 
 	Impl(Config c, Backends b)
 		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb, cfg.share_marker)
 	{
 	}
-
-	// ---- helpers ---------------------------------------------------------------------
-
-	void set_state_pub()
+	~Impl()
 	{
-		state_pub = sm.state();
+		worker.join();
+		control.shutdown();
+		if (socket_lock_fd >= 0)
+			::close(socket_lock_fd);
+		if (lock_fd >= 0)
+			::close(lock_fd);
+		if (be.mcu)
+			be.mcu->close();
 	}
 
-	void post(Msg m)
+	// ---- state -------------------------------------------------------------------------
+
+	// Applies an event the loop has already decided is legal. A refusal here is a bug in the
+	// daemon, not in the booth: it is logged with the state and the event, and the booth goes
+	// to error (failed or fault, whichever the state allows) so the operator sees it and the
+	// recovery timer brings it back to idle. Not an assert: a booth daemon must stay up, and a
+	// release build would otherwise carry on in a state nobody chose.
+	void transition(Event e)
 	{
-		{
-			std::lock_guard<std::mutex> lock(msg_mu);
-			msgs.push_back(std::move(m));
+		Status s = sm.apply(e);
+		if (!s.ok()) {
+			log(LOG_ERR, "bug: event %s refused in state %s: %s", event_name(e), state_name(sm.state()),
+			    s.message().c_str());
+			if (sm.state() != State::error &&
+			    sm.apply(sm.busy() && sm.state() != State::armed ? Event::failed : Event::fault).ok()) {
+				fault = std::string("internal error: event ") + event_name(e) + " refused";
+				next_recover = Clock::now();
+			}
 		}
-		uint64_t one = 1;
-		if (write(wake_fd, &one, sizeof one) < 0) {
-			// counter saturated: the loop is woken anyway
-		}
+		state_pub = sm.state();
 	}
 
 	std::string sid() const
@@ -185,28 +164,12 @@ struct Daemon::Impl {
 	void progress(const std::string &stage, const std::string &text)
 	{
 		if (sm.busy())
-			save_current();
+			journal.save_current(current, sm.state());
 		log(LOG_INFO, "scan %s: %s", sid().c_str(), text.c_str());
 		notify("STATUS=" + std::string(state_name(sm.state())) + ": scan " + sid() + " " + stage);
-		json ev = {{"event", "progress"}, {"scan_id", sid()}, {"state", state_name(sm.state())},
-			   {"message", text}};
-		for (auto &c : clients)
-			if (c->wait_scan == sid())
-				send_line(*c, ev);
-	}
-
-	void send_line(Client &c, const json &j)
-	{
-		std::string s = j.dump() + "\n";
-		// Replies are small; a client that does not read them is dropped, never waited for.
-		ssize_t n = ::send(c.fd, s.data(), s.size(), MSG_NOSIGNAL | MSG_DONTWAIT);
-		if (n != static_cast<ssize_t>(s.size()))
-			c.closing = true;
-	}
-
-	void reply_error(Client &c, const std::string &code, const std::string &message)
-	{
-		send_line(c, {{"ok", false}, {"error", code}, {"message", message}});
+		control.tell_followers(sid(), {{"event", "progress"}, {"scan_id", sid()}, {"state", state_name(sm.state())},
+					       {"message", text}},
+				       false);
 	}
 
 	json status_json() const
@@ -229,253 +192,59 @@ struct Daemon::Impl {
 		return j;
 	}
 
-	void save_last()
-	{
-		Status s = write_file_atomic(spool.state_dir(), "last.json", last.dump(1) + "\n");
-		if (!s.ok())
-			log(LOG_WARNING, "cannot save the last scan's record: %s", s.message().c_str());
-	}
+	// ---- control requests ----------------------------------------------------------------
 
-	// The scan in flight, so that a daemon that dies mid-scan (crash, kill -9) reports it at
-	// the next start instead of forgetting it.
-	void save_current()
+	void on_request(Client &c, const Request &req)
 	{
-		json rec = current;
-		rec["state"] = state_name(sm.state());
-		Status s = write_file_atomic(spool.state_dir(), "current.json", rec.dump(1) + "\n");
-		if (!s.ok())
-			log(LOG_WARNING, "cannot save the running scan's record: %s", s.message().c_str());
-	}
-
-	void load_last()
-	{
-		json j = read_small_json(spool.state_dir() + "/last.json");
-		if (j.is_object())
-			last = j;
-	}
-
-	// ---- socket ----------------------------------------------------------------------
-
-	Status bind_socket()
-	{
-		const std::string &path = cfg.socket_path;
-		struct sockaddr_un addr = {};
-		addr.sun_family = AF_UNIX;
-		if (path.size() >= sizeof addr.sun_path)
-			return Status::error(ENAMETOOLONG, "socket path too long: " + path);
-		std::memcpy(addr.sun_path, path.c_str(), path.size() + 1);
-		int fd = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
-		if (fd < 0)
-			return Status::error(errno, std::string("socket: ") + std::strerror(errno));
-		// A socket file nobody answers on is left over from a crash; one that answers is a
-		// running daemon, which we must not steal from.
-		int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-		if (probe >= 0) {
-			if (connect(probe, reinterpret_cast<sockaddr *>(&addr), sizeof addr) == 0) {
-				::close(probe);
-				::close(fd);
-				return Status::error(EADDRINUSE, path + ": another facescand is running");
-			}
-			::close(probe);
-		}
-		// We hold <socket>.lock, so a socket there is a dead daemon's; anything else is not
-		// ours to delete.
-		struct stat st;
-		if (lstat(path.c_str(), &st) == 0) {
-			if (!S_ISSOCK(st.st_mode)) {
-				::close(fd);
-				return Status::error(EEXIST, "socket_path " + path +
-								     " exists and is not a socket; refusing to replace it");
-			}
-			unlink(path.c_str());
-		}
-		mode_t old = umask(0117);
-		int r = bind(fd, reinterpret_cast<sockaddr *>(&addr), sizeof addr);
-		int err = errno;
-		umask(old);
-		if (r < 0) {
-			::close(fd);
-			return Status::error(err, "bind " + path + ": " + std::strerror(err));
-		}
-		if (chmod(path.c_str(), 0660) < 0) {
-			err = errno;
-			::close(fd);
-			return Status::error(err, "chmod " + path + ": " + std::strerror(err));
-		}
-		if (!cfg.socket_group.empty()) {
-			// No chown when the socket has the group already (the shipped config names the
-			// daemon's own group): the unit's SystemCallFilter then denies @chown too.
-			struct group *g = getgrnam(cfg.socket_group.c_str());
-			struct stat sst;
-			if (!g || stat(path.c_str(), &sst) < 0 ||
-			    (sst.st_gid != g->gr_gid && chown(path.c_str(), static_cast<uid_t>(-1), g->gr_gid) < 0)) {
-				err = g ? errno : ENOENT;
-				::close(fd);
-				return Status::error(EPERM, "cannot give " + path + " to group " + cfg.socket_group + ": " +
-								    (g ? std::strerror(err) : "no such group"));
-			}
-		}
-		if (listen(fd, 16) < 0) {
-			err = errno;
-			::close(fd);
-			return Status::error(err, std::string("listen: ") + std::strerror(err));
-		}
-		listen_fd = fd;
-		return Status();
-	}
-
-	void accept_clients()
-	{
-		for (;;) {
-			int fd = accept4(listen_fd, nullptr, nullptr, SOCK_CLOEXEC | SOCK_NONBLOCK);
-			if (fd < 0)
-				return;
-			int open_clients = 0;
-			for (const auto &c : clients)
-				open_clients += !c->closing;
-			if (open_clients >= kMaxClients) {
-				// Full: the client that has waited longest without sending a request makes
-				// room, so idle connections can never lock everyone out.
-				Client *oldest = nullptr;
-				for (auto &c : clients)
-					if (c->wait_scan.empty() && !c->closing && (!oldest || c->deadline < oldest->deadline))
-						oldest = c.get();
-				if (oldest) {
-					// Closed, not erased: run_once() maps its poll entries to clients by index.
-					::shutdown(oldest->fd, SHUT_RDWR);
-					oldest->closing = true;
-					log_refusal("closed the longest-waiting idle client to admit a new one");
-				} else {
-					const char msg[] = "{\"ok\":false,\"error\":\"too_many_clients\",\"message\":"
-							   "\"too many clients following scans\"}\n";
-					if (::send(fd, msg, sizeof msg - 1, MSG_NOSIGNAL | MSG_DONTWAIT) < 0) {
-						// the client is gone already
-					}
-					::close(fd);
-					log_refusal("refused a client: all " + std::to_string(kMaxClients) +
-						    " slots follow running scans");
-					continue;
-				}
-			}
-			auto c = std::make_unique<Client>();
-			c->fd = fd;
-			c->deadline = Clock::now() + std::chrono::milliseconds(cfg.client_timeout_ms);
-			clients.push_back(std::move(c));
-		}
-	}
-
-	// Refusals are logged, but a flood of them at most once a second (with the count).
-	void log_refusal(const std::string &what)
-	{
-		auto now = Clock::now();
-		if (now < next_refusal_log) {
-			refusals_unlogged++;
-			return;
-		}
-		if (refusals_unlogged)
-			log(LOG_WARNING, "control: %s (and %ld more in the last second)", what.c_str(), refusals_unlogged);
-		else
-			log(LOG_WARNING, "control: %s", what.c_str());
-		refusals_unlogged = 0;
-		next_refusal_log = now + std::chrono::seconds(1);
-	}
-
-	void read_client(Client &c)
-	{
-		char buf[1024];
-		for (;;) {
-			ssize_t n = recv(c.fd, buf, sizeof buf, MSG_DONTWAIT);
-			if (n == 0) {
-				c.closing = true;
-				break;
-			}
-			if (n < 0) {
-				if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)
-					c.closing = true;
-				break;
-			}
-			c.reader.feed(buf, static_cast<size_t>(n));
-			std::string line;
-			for (;;) {
-				LineReader::Result r = c.reader.next(&line);
-				if (r == LineReader::Result::need_more)
-					break;
-				if (r == LineReader::Result::too_large) {
-					log(LOG_WARNING, "control: request larger than %zu bytes refused", kMaxRequest);
-					reply_error(c, "too_large", "request larger than " + std::to_string(kMaxRequest) + " bytes");
-					c.closing = true;
-					return;
-				}
-				handle_line(c, line);
-				c.deadline = Clock::now() + std::chrono::milliseconds(cfg.client_timeout_ms);
-				if (c.closing)
-					return;
-			}
-		}
-	}
-
-	void handle_line(Client &c, const std::string &line)
-	{
-		Request req;
-		Status s = parse_request(line, &req);
-		if (!s.ok()) {
-			log(LOG_WARNING, "control: malformed request refused: %s", s.message().c_str());
-			reply_error(c, "bad_request", s.message());
-			c.closing = true;
-			return;
-		}
 		switch (req.cmd) {
 		case Request::Cmd::status:
-			send_line(c, status_json());
+			control.send(c, status_json());
 			break;
 		case Request::Cmd::last:
-			if (last.is_null())
-				send_line(c, {{"ok", true}, {"last", nullptr}});
-			else
-				send_line(c, {{"ok", true}, {"last", last}});
+			control.send(c, {{"ok", true}, {"last", journal.last()}});
 			break;
 		case Request::Cmd::cancel:
 			if (sm.state() != State::armed) {
-				reply_error(c, "not_armed", std::string("nothing armed (state ") + state_name(sm.state()) + ")");
+				control.reply_error(c, "not_armed",
+						    std::string("nothing armed (state ") + state_name(sm.state()) + ")");
 				break;
 			}
 			be.mcu->abort();
-			sm.apply(Event::disarm);
-			set_state_pub();
+			transition(Event::disarm);
 			progress("cancelled", "cancelled before the trigger");
 			finish_record("cancelled", "");
-			send_line(c, {{"ok", true}, {"state", state_name(sm.state())}});
+			control.send(c, {{"ok", true}, {"state", state_name(sm.state())}});
 			break;
 		case Request::Cmd::button: {
 			if (cfg.mode != Mode::booth) {
 				// It would be ignored (on_button): say so instead of answering ok.
-				reply_error(c, "unsupported", "the button starts scans only in booth mode (mode = clinic)");
+				control.reply_error(c, "unsupported", "the button starts scans only in booth mode (mode = clinic)");
 				break;
 			}
 			Status b = be.mcu->simulate_button();
 			if (!b.ok())
-				reply_error(c, "unsupported", b.message());
+				control.reply_error(c, "unsupported", b.message());
 			else
-				send_line(c, {{"ok", true}});
+				control.send(c, {{"ok", true}});
 			break;
 		}
 		case Request::Cmd::scan:
-			handle_scan(c, req);
+			on_scan_request(c, req);
 			break;
 		}
 	}
 
-	void handle_scan(Client &c, const Request &req)
+	void on_scan_request(Client &c, const Request &req)
 	{
 		Status s = validate_patient_id(req.patient);
 		if (!s.ok()) {
 			log(LOG_WARNING, "control: scan refused: %s", s.message().c_str());
-			reply_error(c, "bad_patient_id", s.message());
+			control.reply_error(c, "bad_patient_id", s.message());
 			return;
 		}
 		s = begin_scan(req.patient);
 		if (!s.ok()) {
-			reply_error(c, s.code() == -EBUSY ? "busy" : "unavailable", s.message());
+			control.reply_error(c, s.code() == -EBUSY ? "busy" : "unavailable", s.message());
 			return;
 		}
 		// The request's DICOM fields (checked by parse_request) ride with the scan's record.
@@ -486,12 +255,12 @@ struct Daemon::Impl {
 		std::string id = sid();
 		if (req.wait)
 			c.wait_scan = id;
-		send_line(c, {{"ok", true}, {"scan_id", id}, {"state", state_name(sm.state())}});
+		control.send(c, {{"ok", true}, {"scan_id", id}, {"state", state_name(sm.state())}});
 		if (cfg.mode == Mode::clinic)
 			fire();
 	}
 
-	// ---- scans -----------------------------------------------------------------------
+	// ---- the scan ------------------------------------------------------------------------
 
 	Status begin_scan(const std::string &patient)
 	{
@@ -503,8 +272,7 @@ struct Daemon::Impl {
 				return Status::error(EAGAIN, "unavailable: " + w.message());
 			}
 		}
-		if (worker_running && worker_is_delivery)
-			join_worker_if_done(true);
+		// Refused here, not by a transition: a request outside idle is the client's, not a bug.
 		Status s = sm.apply(Event::request);
 		if (!s.ok()) {
 			if (s.code() == -EAGAIN)
@@ -513,7 +281,11 @@ struct Daemon::Impl {
 				return Status::error(EBUSY, "busy: scan " + sid() + " is " + state_name(sm.state()));
 			return s;
 		}
-		set_state_pub();
+		state_pub = sm.state();
+		// A delivery of spooled scans is not a scan: it stops after the scan it is delivering,
+		// and the capture, if fired before, waits for that (fire()).
+		if (worker.delivering())
+			worker.stop_delivery();
 		auto now = std::chrono::system_clock::now();
 		const std::string id = new_scan_id();
 		current = {{"scan_id", id},
@@ -545,15 +317,21 @@ struct Daemon::Impl {
 
 	void fire()
 	{
-		Status s = sm.apply(Event::fire);
-		if (!s.ok())
+		if (sm.state() != State::armed) {
+			log(LOG_ERR, "bug: fire in state %s", state_name(sm.state()));
 			return;
-		set_state_pub();
+		}
+		transition(Event::fire);
 		stage_start = Clock::now();
 		current["state"] = "capturing";
-		progress("capturing", "[1/3] capturing");
 		mcu_with_worker = true;
-		start_worker(false);
+		progress("capturing", "[1/3] capturing");
+		if (worker.running()) {
+			capture_waits = true;
+			log(LOG_INFO, "scan %s: the capture waits for the delivery of a spooled scan to end", sid().c_str());
+			return;
+		}
+		worker.start_scan(current);
 	}
 
 	void on_button()
@@ -587,324 +365,127 @@ struct Daemon::Impl {
 		if (!error.empty())
 			current["error"] = error;
 		current.erase("base");
-		last = current;
-		save_last();
-		unlink((spool.state_dir() + "/current.json").c_str());
-		json done = {{"event", "done"}, {"ok", outcome == "delivered" || outcome == "spooled"}, {"scan", last}};
-		for (auto &c : clients)
-			if (c->wait_scan == last.value("scan_id", "")) {
-				send_line(*c, done);
-				c->wait_scan.clear();
-			}
+		journal.finish(current);
+		json done = {{"event", "done"}, {"ok", outcome == "delivered" || outcome == "spooled"}, {"scan", current}};
+		control.tell_followers(sid(), done, true);
 	}
 
 	void fail_scan(const std::string &stage, const std::string &why, bool hardware)
 	{
 		current["failed_stage"] = stage;
-		sm.apply(Event::failed);
-		set_state_pub();
+		transition(Event::failed);
 		fault = why;
 		hardware_fault = hardware;
 		log(LOG_ERR, "scan %s: failed while %s: %s", sid().c_str(), stage.c_str(), why.c_str());
 		notify("STATUS=error: scan " + sid() + " failed while " + stage);
 		finish_record("failed", why);
-		if (hardware) {
+		if (hardware)
 			be.mcu->abort();
-		}
 		next_recover = Clock::now();
 	}
 
-	// ---- worker ----------------------------------------------------------------------
+	// ---- the worker's messages -------------------------------------------------------------
 
-	void start_worker(bool delivery_only)
+	void on_mailbox()
 	{
-		worker_running = true;
-		worker_is_delivery = delivery_only;
-		json rec = current;
-		if (delivery_only)
-			worker = std::thread([this] { deliver_job(); });
-		else
-			worker = std::thread([this, rec] { scan_job(rec); });
+		for (job::Message &m : mailbox.take())
+			std::visit([this](auto &msg) { on_job(msg); }, m);
 	}
 
-	void join_worker_if_done(bool wait)
+	void on_job(job::Captured &m)
 	{
-		if (!worker_running)
-			return;
-		if (!wait)
-			return;
-		worker.join();
-		worker_running = false;
+		mcu_with_worker = false;
+		transition(Event::captured);
+		stage_start = Clock::now();
+		current["stage_ms"]["capture"] = m.ms;
+		current["trigger_report"] = m.report.raw;
+		current["state"] = "reconstructing";
+		progress("reconstructing", m.text + "; [2/3] reconstructing");
 	}
 
-	void deliver_job()
+	void on_job(job::Reconstructed &m)
 	{
-		std::vector<Delivered> out;
-		Status s = spool.deliver(&out, cfg.test_delay_deliver_ms);
-		clinic::retry_pacs(cfg); // after the share: a late send can then record itself in the metadata
-		Msg m{Msg::Kind::delivered, 0, "", false, json::array()};
-		m.data = json::array();
-		for (const Delivered &d : out)
-			m.data.push_back({{"scan_id", d.scan_id}, {"paths", d.paths}});
-		if (!s.ok())
-			m.text = s.message();
-		post(std::move(m));
+		transition(Event::reconstructed);
+		stage_start = Clock::now();
+		current["stage_ms"]["reconstruct"] = m.ms;
+		current["vertices"] = m.vertices;
+		current["faces"] = m.faces;
+		current["recon_stage_ms"] = json::object();
+		for (const auto &st : m.stage_ms)
+			current["recon_stage_ms"][st.first] = st.second;
+		// A suspect scan (wrong pattern, a camera that adds nothing) is said where the
+		// operator looks: the log and `facescan last`, not only the metadata.
+		if (!m.warnings.empty()) {
+			current["warnings"] = m.warnings;
+			for (const std::string &w : m.warnings)
+				log(LOG_WARNING, "scan %s: %s", sid().c_str(), w.c_str());
+		}
+		current["state"] = "writing";
+		progress("writing", m.text + "; [3/3] writing");
 	}
 
-	void scan_job(json rec)
+	void on_job(job::Written &m)
 	{
-		const std::string id = rec["scan_id"];
-		// capture
-		auto t0 = Clock::now();
-		Capture cap;
-		Status s = be.cameras->prepare_at_arm() ? Status() : be.cameras->prepare();
-		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "cameras: " + s.message(), true, {{"stage", "capturing"}}});
-			return;
+		worker.join(); // its last message: the thread is returning
+		transition(Event::written);
+		current["stage_ms"]["write"] = m.ms;
+		current["files"] = m.files;
+		const std::string outcome = m.delivered ? "delivered" : "spooled";
+		double total = 0;
+		for (auto &v : current["stage_ms"])
+			total += v.get<double>();
+		if (m.delivered) {
+			log(LOG_INFO, "scan %s: [3/3] delivered to the share in %ld ms (total %ld ms)", sid().c_str(),
+			    static_cast<long>(m.ms), static_cast<long>(total));
+		} else {
+			current["spool_reason"] = m.spool_reason;
+			log(LOG_WARNING, "scan %s: [3/3] spooled, the share cannot take it yet (%s); total %ld ms",
+			    sid().c_str(), m.spool_reason.c_str(), static_cast<long>(total));
+			next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
 		}
-		TriggerReport report;
-		s = be.mcu->fire(cfg.mcu_timeout_ms, &report);
-		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, s.message(), true, {{"stage", "capturing"}}});
-			return;
-		}
-		s = be.cameras->collect(report, cfg.capture_timeout_ms, &cap);
-		if (s.ok())
-			s = check_capture(cap, be.cameras->count(), cfg.max_frame_skew_us);
-		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "cameras: " + s.message(), true, {{"stage", "capturing"}}});
-			return;
-		}
-		cap.report = report;
-		cap.scan_name = rec["base"];
-		double capture_ms = ms_since(t0);
-		post({Msg::Kind::captured, capture_ms,
-		      "[1/3] captured " + std::to_string(cap.frames.size()) + " frames of trigger " +
-			      std::to_string(report.sequence) + " in " + std::to_string(static_cast<long>(capture_ms)) + " ms",
-		      false, {{"trigger_report", report.raw}}});
-
-		// reconstruction
-		auto t1 = Clock::now();
-		ReconOutput out;
-		s = be.recon->run(cap, &out);
-		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "reconstruction: " + s.message(), false, {{"stage", "reconstructing"}}});
-			return;
-		}
-		double recon_ms = ms_since(t1);
-		// The worker backend keeps a whole set itself (keep_captures); others get the frames.
-		if (cfg.keep_captures &&
-		    access((cfg.spool_dir + "/captures/" + rec["base"].get<std::string>() + "/calibration.yaml").c_str(), F_OK) != 0)
-			keep_capture(rec["base"], cap);
-		json recon_stages = json::object();
-		for (const auto &st : out.stage_ms)
-			recon_stages[st.first] = st.second;
-		post({Msg::Kind::reconstructed, recon_ms,
-		      "[2/3] reconstructed " + std::to_string(out.vertices) + " vertices in " +
-			      std::to_string(static_cast<long>(recon_ms)) + " ms",
-		      false,
-		      {{"vertices", out.vertices},
-		       {"faces", out.faces},
-		       {"recon_stage_ms", recon_stages},
-		       {"warnings", out.quality.is_object() ? out.quality.value("warnings", json::array()) : json::array()}}});
-
-		// writing: spool (the commit point), then the share
-		auto t2 = Clock::now();
-		const std::string base = rec["base"];
-		json meta = {{"scan_id", id},
-			     {"patient_id", rec["patient_id"]},
-			     {"started_utc", rec["started_utc"]},
-			     {"software_version", version()},
-			     {"mode", mode_name(cfg.mode)},
-			     {"stage_ms", {{"capture", capture_ms}, {"reconstruct", recon_ms}}},
-			     {"recon_stage_ms", recon_stages},
-			     {"trigger_report", report.raw},
-			     {"firmware", be.mcu->firmware_version()},
-			     {"calibration_id", cap.calibration_id},
-			     {"camera_backend", be.cameras->backend_name()},
-			     {"cameras", cap.meta},
-			     {"recon_backend", be.recon->backend_name()},
-			     {"vertices", out.vertices},
-			     {"faces", out.faces},
-			     {"quality", out.quality},
-			     {"files", {{"mesh", base + ".drc"}, {"texture", base + ".png"}}}};
-		std::vector<SpoolFile> files = {{base + ".drc", out.drc}, {base + ".png", out.png}};
-		clinic::add_outputs(cfg, out, rec, &files, &meta); // .glb, thumbnail, .stl/.obj, DICOM, manifest
-		files.push_back({base + ".json", meta.dump(1) + "\n"});
-		s = spool.put(base, id, rec["patient_id"], files, cfg.test_delay_write_ms);
-		if (!s.ok()) {
-			post({Msg::Kind::failed, 0, "spool: " + s.message() + capture_kept(base), false,
-			      {{"stage", "writing"}}});
-			return;
-		}
-		be.recon->release(base);
-		std::vector<Delivered> delivered;
-		Status d = spool.deliver(&delivered, cfg.test_delay_deliver_ms);
-		bool landed = false;
-		json paths = json::array();
-		for (const Delivered &x : delivered)
-			if (x.scan_id == id) {
-				landed = true;
-				paths = x.paths;
-			}
-		json data = {{"write_ms", ms_since(t2)}, {"outcome", landed ? "delivered" : "spooled"}, {"files", paths}};
-		if (!landed)
-			data["spool_reason"] = d.ok() ? "an older spooled scan is ahead" : d.message();
-		post({Msg::Kind::finished, ms_since(t2), "", false, data});
+		notify("STATUS=idle: last scan " + sid() + " " + outcome);
+		finish_record(outcome, "");
 	}
 
-	// "; capture kept in DIR" when a capture set of the scan is in <spool_dir>/captures, else "".
-	std::string capture_kept(const std::string &base) const
+	void on_job(job::Failed &m)
 	{
-		const std::string dir = cfg.spool_dir + "/captures/" + base;
-		struct stat st;
-		if (base.empty() || stat(dir.c_str(), &st) < 0 || !S_ISDIR(st.st_mode))
-			return "";
-		return "; capture kept in " + dir + " for an offline retry";
+		worker.join(); // its last message: the thread is returning
+		mcu_with_worker = false;
+		fail_scan(m.stage, m.why, m.hardware);
+		try_recover();
 	}
 
-	void keep_capture(const std::string &base, const Capture &cap)
+	void on_job(job::DeliveryDone &m)
 	{
-		const std::string dir = cfg.spool_dir + "/captures";
-		mkdir(dir.c_str(), 0750);
-		const std::string set = dir + "/" + base;
-		if (mkdir(set.c_str(), 0750) < 0 && errno != EEXIST)
-			return;
-		for (const Frame &f : cap.frames)
-			cv::imwrite(set + "/cam" + std::to_string(f.camera) + (f.texture ? "_texture" : "") + ".png", f.image);
-		json meta = {{"scan_id", base.substr(base.rfind('_') + 1)}, {"trigger_report", cap.report.raw}};
-		write_file_atomic(set, "capture.json", meta.dump(1) + "\n");
-	}
-
-	void drain_messages()
-	{
-		uint64_t n;
-		if (read(wake_fd, &n, sizeof n) < 0) {
-			// EAGAIN: nothing new
+		worker.join(); // its last message: the thread is returning
+		for (const Delivered &d : m.scans) {
+			log(LOG_INFO, "scan %s: spooled scan delivered to the share", d.scan_id.c_str());
+			journal.delivered(d.scan_id, d.paths);
 		}
-		std::deque<Msg> batch;
-		{
-			std::lock_guard<std::mutex> lock(msg_mu);
-			batch.swap(msgs);
-		}
-		for (Msg &m : batch)
-			handle_msg(m);
-	}
-
-	void handle_msg(Msg &m)
-	{
-		switch (m.kind) {
-		case Msg::Kind::captured:
-			mcu_with_worker = false;
-			sm.apply(Event::captured);
-			set_state_pub();
-			stage_start = Clock::now();
-			current["stage_ms"]["capture"] = m.ms;
-			current["trigger_report"] = m.data["trigger_report"];
-			current["state"] = "reconstructing";
-			progress("reconstructing", m.text + "; [2/3] reconstructing");
-			break;
-		case Msg::Kind::reconstructed:
-			sm.apply(Event::reconstructed);
-			set_state_pub();
-			stage_start = Clock::now();
-			current["stage_ms"]["reconstruct"] = m.ms;
-			current["vertices"] = m.data["vertices"];
-			current["faces"] = m.data["faces"];
-			current["recon_stage_ms"] = m.data["recon_stage_ms"];
-			// A suspect scan (wrong pattern, a camera that adds nothing) is said where the
-			// operator looks: the log and `facescan last`, not only the metadata.
-			if (m.data["warnings"].is_array() && !m.data["warnings"].empty()) {
-				current["warnings"] = m.data["warnings"];
-				for (const auto &w : m.data["warnings"])
-					if (w.is_string())
-						log(LOG_WARNING, "scan %s: %s", sid().c_str(), w.get<std::string>().c_str());
-			}
-			current["state"] = "writing";
-			progress("writing", m.text + "; [3/3] writing");
-			break;
-		case Msg::Kind::finished: {
-			join_worker_if_done(true);
-			sm.apply(Event::written);
-			set_state_pub();
-			current["stage_ms"]["write"] = m.data["write_ms"];
-			current["files"] = m.data["files"];
-			const std::string outcome = m.data["outcome"];
-			double total = 0;
-			for (auto &v : current["stage_ms"])
-				total += v.get<double>();
-			if (outcome == "delivered") {
-				log(LOG_INFO, "scan %s: [3/3] delivered to the share in %ld ms (total %ld ms)",
-				    sid().c_str(), static_cast<long>(m.ms), static_cast<long>(total));
-			} else {
-				current["spool_reason"] = m.data["spool_reason"];
-				log(LOG_WARNING, "scan %s: [3/3] spooled, the share cannot take it yet (%s); total %ld ms",
-				    sid().c_str(), m.data.value("spool_reason", "").c_str(), static_cast<long>(total));
-				next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
-			}
-			notify("STATUS=idle: last scan " + sid() + " " + outcome);
-			finish_record(outcome, "");
-			break;
-		}
-		case Msg::Kind::failed:
-			join_worker_if_done(true);
-			mcu_with_worker = false;
-			fail_scan(m.data.value("stage", "?"), m.text, m.hardware);
-			try_recover();
-			break;
-		case Msg::Kind::delivered:
-			// A scan may have started after joining this job already (begin_scan).
-			if (worker_is_delivery)
-				join_worker_if_done(true);
-			for (const auto &d : m.data) {
-				const std::string id = d["scan_id"];
-				log(LOG_INFO, "scan %s: spooled scan delivered to the share", id.c_str());
-				if (last.value("scan_id", "") == id) {
-					last["state"] = "delivered";
-					last["files"] = d["paths"];
-					last.erase("spool_reason");
-					save_last();
-				}
-			}
-			if (!m.text.empty())
-				next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
-			break;
-		}
-	}
-
-	// ---- recovery and timers ----------------------------------------------------------
-
-	void try_recover()
-	{
-		if (sm.state() != State::error || worker_running)
-			return;
-		next_recover = Clock::now() + std::chrono::milliseconds(kRecoverEveryMs);
-		if (!be.mcu->is_open()) {
-			Status s = be.mcu->open();
-			if (!s.ok()) {
-				fault = "MCU: " + s.message();
-				return;
-			}
-			log(LOG_INFO, "MCU connected: %s", be.mcu->firmware_version().c_str());
-		}
-		if (hardware_fault) {
-			Status s = be.cameras->open();
-			if (!s.ok()) {
-				fault = "cameras: " + s.message();
-				return;
+		if (!m.error.empty())
+			next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
+		if (capture_waits) {
+			capture_waits = false;
+			if (sm.state() == State::capturing) {
+				stage_start = Clock::now();
+				worker.start_scan(current);
 			}
 		}
-		sm.apply(Event::recovered);
-		set_state_pub();
-		fault.clear();
-		hardware_fault = false;
-		log(LOG_INFO, "recovered: idle");
-		notify("STATUS=idle");
 	}
 
-	void poll_mcu()
+	// ---- the MCU -------------------------------------------------------------------------
+
+	// The loop reads the MCU's events unless the worker is firing it or the booth is in error
+	// (recovery reopens it; a press meanwhile is not a scan).
+	bool mcu_is_ours() const
 	{
-		if (mcu_with_worker || sm.state() == State::error)
+		return !mcu_with_worker && sm.state() != State::error;
+	}
+
+	void on_mcu()
+	{
+		next_mcu_poll = Clock::now() + std::chrono::milliseconds(kMcuPollMs);
+		if (!mcu_is_ours())
 			return;
 		std::vector<McuEvent> events;
 		be.mcu->poll_events(&events);
@@ -924,8 +505,8 @@ struct Daemon::Impl {
 				be.mcu->close();
 				if (sm.state() == State::armed) {
 					fail_scan("armed", "MCU link lost", true);
-				} else if (sm.apply(Event::fault).ok()) {
-					set_state_pub();
+				} else if (sm.state() == State::idle) {
+					transition(Event::fault);
 					fault = "MCU link lost";
 					hardware_fault = false;
 					notify("STATUS=error: MCU link lost");
@@ -935,100 +516,149 @@ struct Daemon::Impl {
 		}
 	}
 
-	void timers()
+	// ---- deadlines -----------------------------------------------------------------------
+
+	void try_recover()
 	{
-		auto now = Clock::now();
-		if (sm.state() == State::armed && now >= arm_deadline) {
-			be.mcu->abort();
-			sm.apply(Event::disarm);
-			set_state_pub();
-			log(LOG_INFO, "scan %s: no button press within %d ms, disarmed", sid().c_str(), cfg.arm_timeout_ms);
-			finish_record("cancelled", "no button press in time");
-		}
-		if (sm.state() == State::error && now >= next_recover)
-			try_recover();
-		if (!sm.busy() && !worker_running && now >= next_delivery &&
-		    (spool.pending() > 0 || clinic::pacs_pending(cfg))) {
-			next_delivery = now + std::chrono::milliseconds(cfg.spool_retry_ms);
-			start_worker(true);
-		}
-		if (!mcu_with_worker && now >= next_mcu_poll) {
-			next_mcu_poll = now + std::chrono::milliseconds(kMcuPollMs);
-			poll_mcu();
-		}
-		if (watchdog_usec && now >= next_ping) {
-			next_ping = now + std::chrono::microseconds(watchdog_usec / 2);
-			// A stage that overruns means a hung worker: stop pinging and let systemd restart us.
-			if (!sm.busy() || ms_since(stage_start) < cfg.stage_timeout_ms)
-				notify("WATCHDOG=1");
-			else
-				log(LOG_CRIT, "scan %s: stage %s overran %d ms, watchdog pings stopped", sid().c_str(),
-				    state_name(sm.state()), cfg.stage_timeout_ms);
-		}
-		for (auto &c : clients)
-			if (c->wait_scan.empty() && !c->closing && now >= c->deadline) {
-				c->closing = true;
-				log_refusal("closed a client that sent no whole request within " +
-					    std::to_string(cfg.client_timeout_ms) + " ms");
+		next_recover = Clock::now() + std::chrono::milliseconds(kRecoverEveryMs);
+		if (sm.state() != State::error || worker.running())
+			return;
+		if (!be.mcu->is_open()) {
+			Status s = be.mcu->open();
+			if (!s.ok()) {
+				fault = "MCU: " + s.message();
+				return;
 			}
+			log(LOG_INFO, "MCU connected: %s", be.mcu->firmware_version().c_str());
+		}
+		if (hardware_fault) {
+			Status s = be.cameras->open();
+			if (!s.ok()) {
+				fault = "cameras: " + s.message();
+				return;
+			}
+		}
+		transition(Event::recovered);
+		fault.clear();
+		hardware_fault = false;
+		log(LOG_INFO, "recovered: idle");
+		notify("STATUS=idle");
 	}
 
-	int next_timeout() const
+	void on_arm_timeout()
 	{
-		auto now = Clock::now();
-		auto soonest = now + std::chrono::milliseconds(1000);
-		auto consider = [&](Clock::time_point t) {
-			if (t < soonest)
-				soonest = t;
-		};
+		be.mcu->abort();
+		transition(Event::disarm);
+		log(LOG_INFO, "scan %s: no button press within %d ms, disarmed", sid().c_str(), cfg.arm_timeout_ms);
+		finish_record("cancelled", "no button press in time");
+	}
+
+	void start_delivery()
+	{
+		next_delivery = Clock::now() + std::chrono::milliseconds(cfg.spool_retry_ms);
+		worker.start_delivery();
+	}
+
+	void ping_watchdog()
+	{
+		next_ping = Clock::now() + std::chrono::microseconds(watchdog_usec / 2);
+		// A stage that overruns means a hung worker: stop pinging and let systemd restart us.
+		if (!sm.busy() || ms_since(stage_start) < cfg.stage_timeout_ms)
+			notify("WATCHDOG=1");
+		else
+			log(LOG_CRIT, "scan %s: stage %s overran %d ms, watchdog pings stopped", sid().c_str(),
+			    state_name(sm.state()), cfg.stage_timeout_ms);
+	}
+
+	void expire_clients()
+	{
+		control.expire_clients();
+	}
+
+	// Every timed thing the loop does, with the condition under which it is armed. poll's
+	// timeout and the firing both read this one table, so a deadline cannot be armed in one
+	// and forgotten in the other. Each action moves its own deadline or disarms it.
+	struct Deadline {
+		Clock::time_point when;
+		void (Impl::*fire)();
+	};
+
+	std::vector<Deadline> deadlines() const
+	{
+		std::vector<Deadline> d;
 		if (sm.state() == State::armed)
-			consider(arm_deadline);
-		if (sm.state() == State::error)
-			consider(next_recover);
-		if (!sm.busy() && !worker_running && spool.pending() > 0)
-			consider(next_delivery);
-		if (!mcu_with_worker && be.mcu->event_fd() < 0)
-			consider(next_mcu_poll);
+			d.push_back({arm_deadline, &Impl::on_arm_timeout});
+		if (sm.state() == State::error && !worker.running())
+			d.push_back({next_recover, &Impl::try_recover});
+		if (!sm.busy() && !worker.running() && (spool.pending() > 0 || clinic::pacs_pending(cfg)))
+			d.push_back({next_delivery, &Impl::start_delivery});
+		if (mcu_is_ours()) {
+			if (be.mcu->event_fd() < 0)
+				d.push_back({next_mcu_poll, &Impl::on_mcu});
+			else if (be.mcu->events_queued())
+				d.push_back({Clock::now(), &Impl::on_mcu}); // the fd would not wake us for these
+		}
 		if (watchdog_usec)
-			consider(next_ping);
-		for (const auto &c : clients)
-			if (c->wait_scan.empty())
-				consider(c->deadline);
+			d.push_back({next_ping, &Impl::ping_watchdog});
+		if (auto t = control.next_deadline())
+			d.push_back({*t, &Impl::expire_clients});
+		return d;
+	}
+
+	int poll_timeout() const
+	{
+		auto soonest = Clock::now() + std::chrono::milliseconds(1000);
+		for (const Deadline &d : deadlines())
+			soonest = std::min(soonest, d.when);
 		return ms_until(soonest);
 	}
+
+	void fire_due()
+	{
+		// One at a time, the table rebuilt after each: an action changes what is armed. At most
+		// 16 a turn, so that a deadline that failed to move itself cannot starve the sockets.
+		for (int n = 0; n < 16; n++) {
+			auto now = Clock::now();
+			const Deadline *due = nullptr;
+			std::vector<Deadline> table = deadlines();
+			for (const Deadline &d : table)
+				if (d.when <= now && (!due || d.when < due->when))
+					due = &d;
+			if (!due)
+				return;
+			(this->*(due->fire))();
+		}
+	}
+
+	// ---- the loop ------------------------------------------------------------------------
 
 	Status run_once()
 	{
 		std::vector<pollfd> fds;
-		fds.push_back({wake_fd, POLLIN, 0});
-		fds.push_back({listen_fd, POLLIN, 0});
-		int mcu_fd = mcu_with_worker ? -1 : be.mcu->event_fd();
-		fds.push_back({mcu_fd, POLLIN, 0});
-		for (auto &c : clients)
+		fds.push_back({mailbox.fd(), POLLIN, 0});
+		fds.push_back({control.listen_fd(), POLLIN, 0});
+		fds.push_back({mcu_is_ours() ? be.mcu->event_fd() : -1, POLLIN, 0});
+		const size_t first_client = fds.size();
+		for (const auto &c : control.clients())
 			fds.push_back({c->fd, POLLIN, 0});
-		int r = poll(fds.data(), fds.size(), next_timeout());
+		int r = poll(fds.data(), fds.size(), poll_timeout());
 		if (r < 0 && errno != EINTR)
 			return Status::error(errno, std::string("poll: ") + std::strerror(errno));
 		if (r > 0) {
 			if (fds[0].revents)
-				drain_messages();
+				on_mailbox();
 			if (fds[2].revents)
-				next_mcu_poll = Clock::now();
+				on_mcu();
 			if (fds[1].revents)
-				accept_clients();
-			for (size_t i = 3; i < fds.size() && i - 3 < clients.size(); i++)
-				if (fds[i].revents && !clients[i - 3]->closing)
-					read_client(*clients[i - 3]);
+				control.accept_clients();
+			// Clients accepted just now come after the polled ones; closed ones stay until
+			// close_finished(), so index i is still the client polled at i.
+			for (size_t i = first_client; i < fds.size(); i++)
+				if (fds[i].revents)
+					control.read_client(i - first_client);
 		}
-		timers();
-		for (auto it = clients.begin(); it != clients.end();) {
-			if ((*it)->closing) {
-				::close((*it)->fd);
-				it = clients.erase(it);
-			} else {
-				++it;
-			}
-		}
+		fire_due();
+		control.close_finished();
 		return Status();
 	}
 };
@@ -1037,26 +667,7 @@ Daemon::Daemon(Config config, Backends backends) : impl_(std::make_unique<Impl>(
 {
 }
 
-Daemon::~Daemon()
-{
-	Impl &d = *impl_;
-	if (d.worker_running)
-		d.worker.join();
-	for (auto &c : d.clients)
-		::close(c->fd);
-	if (d.listen_fd >= 0) {
-		::close(d.listen_fd);
-		unlink(d.cfg.socket_path.c_str());
-	}
-	if (d.wake_fd >= 0)
-		::close(d.wake_fd);
-	if (d.socket_lock_fd >= 0)
-		::close(d.socket_lock_fd);
-	if (d.lock_fd >= 0)
-		::close(d.lock_fd);
-	if (d.be.mcu)
-		d.be.mcu->close();
-}
+Daemon::~Daemon() = default;
 
 void Daemon::set_notify(std::function<void(const std::string &)> notify)
 {
@@ -1076,10 +687,7 @@ State Daemon::state() const
 void Daemon::request_stop()
 {
 	impl_->stop = true;
-	uint64_t one = 1;
-	if (impl_->wake_fd >= 0 && write(impl_->wake_fd, &one, sizeof one) < 0) {
-		// saturated: a wake-up is pending
-	}
+	impl_->mailbox.wake();
 }
 
 Status Daemon::start()
@@ -1087,12 +695,12 @@ Status Daemon::start()
 	Impl &d = *impl_;
 	if (!d.be.mcu || !d.be.cameras || !d.be.recon)
 		return Status::error(EINVAL, "facescand: a backend is missing");
-	d.wake_fd = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-	if (d.wake_fd < 0)
-		return Status::error(errno, std::string("eventfd: ") + std::strerror(errno));
+	Status s = d.mailbox.open();
+	if (!s.ok())
+		return s;
 	// One daemon per spool and per socket, settled before anything is touched: a second
 	// daemon must not run crash recovery on a live daemon's spool.
-	Status s = d.spool.init();
+	s = d.spool.init();
 	if (!s.ok())
 		return s;
 	s = take_lock(d.cfg.spool_dir + "/facescand.lock", "spool " + d.cfg.spool_dir, &d.lock_fd);
@@ -1104,66 +712,21 @@ Status Daemon::start()
 	s = d.spool.writable();
 	if (!s.ok())
 		return s;
-	s = d.bind_socket();
+	s = d.control.bind();
 	if (!s.ok())
 		return s;
-	d.load_last();
-	std::vector<std::string> failed;
-	s = d.spool.recover(&failed);
+	std::vector<std::string> interrupted;
+	s = d.spool.recover(&interrupted);
 	if (!s.ok())
 		return s;
-	{
-		// The scan the previous daemon did not finish. The spool decides what became of it:
-		// queued (delivered next), on the share already, or lost before it was spooled.
-		json cur = read_small_json(d.spool.state_dir() + "/current.json");
-		if (cur.is_object() && cur.contains("scan_id")) {
-			const std::string st = cur.value("state", "?");
-			const std::string id = cur.value("scan_id", "");
-			const std::string base = cur.value("base", "");
-			const bool on_share = !base.empty() &&
-					      access((d.cfg.share_dir + "/" + cur.value("patient_id", "") + "/" +
-						      base + ".json").c_str(), F_OK) == 0;
-			cur.erase("base");
-			if (d.spool.queued(id)) {
-				log(LOG_WARNING, "scan %s: the daemon stopped before delivering it; delivering it from the spool",
-				    id.c_str());
-				cur["state"] = "spooled";
-				cur["spool_reason"] = "the daemon stopped while delivering it";
-			} else if (st == "writing" && on_share &&
-				   std::find(failed.begin(), failed.end(), id) == failed.end()) {
-				log(LOG_INFO, "scan %s: delivered before the daemon stopped", id.c_str());
-				cur["state"] = "delivered";
-			} else {
-				const std::string kept = d.capture_kept(base);
-				log(LOG_ERR, "scan %s: interrupted while %s (daemon stopped); reported failed%s", id.c_str(),
-				    st.c_str(), kept.c_str());
-				cur["state"] = "failed";
-				cur["failed_stage"] = st;
-				cur["error"] = "interrupted while " + st + ": the daemon stopped; scan again" + kept;
-			}
-			failed.erase(std::remove(failed.begin(), failed.end(), id), failed.end());
-			d.last = cur;
-			d.save_last();
-		}
-		unlink((d.spool.state_dir() + "/current.json").c_str());
-	}
-	for (const std::string &id : failed) {
-		log(LOG_ERR, "scan %s: interrupted while writing (daemon stopped); reported failed", id.c_str());
-		if (d.last.value("scan_id", "") != id || d.last.value("state", "") != "failed") {
-			d.last = {{"scan_id", id},
-				  {"state", "failed"},
-				  {"failed_stage", "writing"},
-				  {"error", "interrupted while writing: the daemon stopped; scan again"}};
-			d.save_last();
-		}
-	}
+	d.journal.recover(d.cfg.share_dir, d.cfg.spool_dir, std::move(interrupted));
 	size_t pending = d.spool.pending();
 	if (pending)
 		log(LOG_INFO, "%zu spooled scan(s) waiting for the share", pending);
 	s = d.be.cameras->open();
 	if (!s.ok()) {
 		log(LOG_ERR, "cameras: %s", s.message().c_str());
-		d.sm.apply(Event::fault);
+		d.transition(Event::fault);
 		d.fault = "cameras: " + s.message();
 		d.hardware_fault = true;
 	}
@@ -1171,12 +734,11 @@ Status Daemon::start()
 	if (!m.ok()) {
 		log(LOG_ERR, "MCU: %s", m.message().c_str());
 		if (d.sm.state() != State::error)
-			d.sm.apply(Event::fault);
+			d.transition(Event::fault);
 		d.fault = "MCU: " + m.message();
 	} else {
 		log(LOG_INFO, "MCU connected: %s", d.be.mcu->firmware_version().c_str());
 	}
-	d.set_state_pub();
 	if (d.cfg.viewer_port > 0) { // a viewer that cannot start is logged; scanning goes on
 		viewer::Options vo;
 		vo.share_dir = d.cfg.share_dir;
@@ -1208,13 +770,13 @@ Status Daemon::run()
 			return s;
 	}
 	d.notify("STOPPING=1");
-	if (d.worker_running) {
+	if (d.worker.running()) {
 		log(LOG_INFO, "stopping: waiting for the running stage to finish");
 		// Let the worker finish and record its outcome so nothing is left half-written.
-		while (d.worker_running) {
-			pollfd p = {d.wake_fd, POLLIN, 0};
+		while (d.worker.running()) {
+			pollfd p = {d.mailbox.fd(), POLLIN, 0};
 			poll(&p, 1, 1000);
-			d.drain_messages();
+			d.on_mailbox();
 		}
 	}
 	log(LOG_INFO, "stopped");

@@ -1,5 +1,7 @@
-// facescand's core: the event loop (control socket, MCU events, timers) in the calling thread,
-// and one worker thread per scan for the slow stages (capture, reconstruction, writing).
+// facescand's core: the event loop (control socket, MCU events, worker messages, deadlines) in
+// the calling thread, and a worker thread for the slow stages of a scan (capture,
+// reconstruction, writing) and for deliveries of spooled scans (daemon.cpp says how the parts
+// fit; docs/daemon.md draws them).
 // Ownership of the booth follows the state: the worker calls the MCU only while capturing and
 // the cameras and reconstructor only while it runs; the loop calls the MCU otherwise.
 #pragma once

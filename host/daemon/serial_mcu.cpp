@@ -228,6 +228,19 @@ Status SerialMcu::abort()
 	return rc < 0 ? link_error(rc, "abort") : Status();
 }
 
+int SerialMcu::event_fd() const
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	int fd = link_ ? fscan_serial_fd(link_) : -1;
+	return fd < 0 ? -1 : fd;
+}
+
+bool SerialMcu::events_queued() const
+{
+	std::lock_guard<std::mutex> lock(mu_);
+	return link_ && fscan_serial_pending(link_);
+}
+
 Status SerialMcu::poll_events(std::vector<McuEvent> *ret_events)
 {
 	std::lock_guard<std::mutex> lock(mu_);

@@ -126,7 +126,7 @@ Status Spool::share_error(int rc) const
 	return errno_status(-rc, "deliver to share " + share_dir_);
 }
 
-Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms)
+Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms, const std::atomic<bool> *stop)
 {
 	ret_delivered->clear();
 	if (!st_)
@@ -135,7 +135,7 @@ Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms)
 		const std::string *share;
 		std::vector<std::string> v;
 	} paths{&share_dir_, {}};
-	for (;;) {
+	while (!stop || !*stop) {
 		fscan_storage_delivery d = {};
 		paths.v.clear();
 		int rc = fscan_storage_deliver_next(
@@ -151,6 +151,7 @@ Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms)
 			return share_error(rc);
 		ret_delivered->push_back({d.base, d.scan_id, d.dir, std::move(paths.v)});
 	}
+	return Status();
 }
 
 Status Spool::writable() const

@@ -9,6 +9,7 @@
 #include "common/status.hpp"
 #include "facescan/storage.h"
 
+#include <atomic>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,8 +48,9 @@ public:
 	/// fscan_storage_recover(): the scan ids of entries interrupted while spooled.
 	Status recover(std::vector<std::string> *ret_failed_scan_ids);
 	/// fscan_storage_deliver_next() until the queue is empty or the share fails, which is
-	/// returned (-ENOENT: share missing or not mounted, -ENOSPC: share full, -EIO...).
-	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms);
+	/// returned (-ENOENT: share missing or not mounted, -ENOSPC: share full, -EIO...), or until
+	/// *stop (set from another thread) is seen between two scans.
+	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms, const std::atomic<bool> *stop = nullptr);
 	/// fscan_storage_writable(), with a message naming the spool.
 	Status writable() const;
 	/// Complete entries waiting.

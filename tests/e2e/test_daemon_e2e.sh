@@ -2,7 +2,8 @@
 # facescand end to end: the native firmware build on a pty (the real protocol and trigger
 # sequence), facescand as its own process with the fake cameras and reconstruction, the CLI.
 # Scans by socket request and by button press; faults: a bad config, the MCU unplugged
-# mid-scan, the share missing then back, kill -9 while spooling and while delivering.
+# mid-scan, the share missing then back, a slow delivery (the loop keeps answering), kill -9
+# while spooling and while delivering.
 set -u
 bin=${FACESCAN_BIN:?}
 fw=$bin/facescan-fw-native
@@ -132,6 +133,30 @@ sleep 0.6
 check "delivered once" [ "$(visible_files SPOOL-1)" -eq 5 ]
 check "last says delivered" sh -c "\"$bin/facescan\" last | grep -q ': delivered'"
 check "spool empty" [ -z "$(ls "$T/spool/queue")" ]
+stop_daemon
+
+# ---- a slow delivery never blocks the loop: status answers, a scan request is taken at once,
+# the delivery stops after the scan it delivers and the new scan's capture follows it ----
+ms_of() { s=$(date +%s%N); "$@" >/dev/null 2>&1; echo $(( ($(date +%s%N) - s) / 1000000 )); }
+start_daemon <<CONF
+test_delay_deliver_ms = 1000
+CONF
+mv "$T/share" "$T/share.away"
+fs scan --patient SLOW-1 --press >/dev/null
+mv "$T/share.away" "$T/share"
+for _ in $(seq 50); do [ "$(visible_files SLOW-1)" -ge 1 ] && break; sleep 0.05; done
+check "a spooled scan is being delivered (slowly)" [ "$(visible_files SLOW-1)" -ge 1 ] && [ "$(visible_files SLOW-1)" -lt 5 ]
+t=$(ms_of fs status)
+check "status answers during the delivery (${t} ms)" [ "$t" -lt 1500 ]
+t=$(ms_of fs scan --patient SLOW-2 --press --no-wait)
+check "a scan request is answered during the delivery (${t} ms)" [ "$t" -lt 1500 ]
+t=$(ms_of fs status)
+check "status answers while the capture waits for the delivery (${t} ms)" [ "$t" -lt 1500 ]
+check "both scans done" wait_state idle 250
+for _ in $(seq 50); do [ "$(visible_files SLOW-2)" -eq 5 ] && break; sleep 0.1; done
+check "SLOW-1 delivered whole" [ "$(visible_files SLOW-1)" -eq 5 ]
+check "SLOW-2 delivered whole" [ "$(visible_files SLOW-2)" -eq 5 ]
+check "spool empty after both" [ -z "$(ls "$T/spool/queue")" ]
 stop_daemon
 
 # ---- kill -9 before the files exist (armed): reported failed on restart ----
