@@ -270,8 +270,20 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	cv::Mat D, W;
 	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
 	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
+	// Normalised: bilinear weights on invalid neighbours (their 0) would pull a pixel next to a
+	// hole towards disparity 0 (a quarter of it or more), a step the steep filter then cuts out.
+	for (int y = 0; y < size.height; ++y) {
+		float *dr = D.ptr<float>(y);
+		const float *wr = W.ptr<float>(y);
+		for (int x = 0; x < size.width; ++x)
+			dr[x] = wr[x] > 1e-3f ? dr[x] / wr[x] : 0.f;
+	}
 	D *= k;
+	const cv::Mat D_in = D.clone();
 	const cv::Size win(params.refine_window, params.refine_window);
+	// A window reaching into a hole would compare the left view with the right one warped by
+	// the hole's disparity (none): only pixels whose whole window is matched are refined.
+	cv::boxFilter(W, W, CV_32F, win);
 	cv::Mat muL;
 	cv::boxFilter(L, muL, CV_32F, win);
 	const cv::Mat Lz = L - muL;
@@ -305,7 +317,9 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			}
 		}
 	}
-	// Back to the matching resolution: the full-resolution value at each matching pixel.
+	// Back to the matching resolution: each matching pixel moves by what the refinement moved the
+	// full-resolution pixel at its place; one it did not refine keeps its own value exactly
+	// (reading the upsampled map back would blend it with its neighbours).
 	for (int y = 0; y < roi.height; ++y) {
 		float *out = disparity->ptr<float>(roi.y + y) + roi.x;
 		const uchar *vr = valid.ptr<uchar>(roi.y + y) + roi.x;
@@ -314,7 +328,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			if (!vr[x])
 				continue;
 			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
-			out[x] = D.at<float>(yy, xx) / float(k);
+			out[x] += (D.at<float>(yy, xx) - D_in.at<float>(yy, xx)) / float(k);
 		}
 	}
 }
