@@ -741,6 +741,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	// Valid pixels: a prior, lit in both views, matched by SGBM (its left-right check passed).
 	cv::Mat valid(rp.size, CV_8U, cv::Scalar(0));
 	cv::Mat total(rp.size, CV_32F, cv::Scalar(0));
+	cv::Mat fail(rp.size, CV_8U, cv::Scalar(0)); // SGBM found no match (its checks refused one)
 	for (int y = 0; y < rp.size.height; ++y) {
 		const short *dr = disp16.ptr<short>(y);
 		const float *pr = prior.ptr<float>(y);
@@ -749,8 +750,12 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		uchar *vr = valid.ptr<uchar>(y);
 		float *tr = total.ptr<float>(y);
 		for (int x = 0; x < rp.size.width; ++x) {
-			if (pr[x] != pr[x] || dr[x] < mind * 16)
+			if (pr[x] != pr[x])
 				continue;
+			if (dr[x] < mind * 16) {
+				fail.at<uchar>(y, x) = 255;
+				continue;
+			}
 			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity)
 				continue;
 			stats.matched++;
@@ -772,6 +777,16 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			tr[x] = r + p;
 			vr[x] = 255;
 		}
+	}
+	// Next to a pixel SGBM refused (its left-right, uniqueness or speckle check) the match is
+	// unsure; next to one merely dark or unlit it is not.
+	if (params.unmatched_margin_px > 0) {
+		const int m = 2 * params.unmatched_margin_px + 1;
+		cv::Mat near;
+		cv::dilate(fail, near, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(m, m)));
+		near &= valid;
+		stats.near_unmatched = cv::countNonZero(near);
+		valid.setTo(0, near);
 	}
 	if (params.refine_iterations > 0)
 		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);

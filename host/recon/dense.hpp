@@ -81,6 +81,11 @@ struct DenseParams {
 	/// zones: no lit square) keeps its pixels only within this many pixels of a textured match;
 	/// farther, nothing in the pattern supports SGBM's guess and they are dropped. 0: kept.
 	double flat_dark_reach_px = 5;
+	/// Matches within this many pixels (square neighbourhood, matching resolution) of a prior pixel
+	/// SGBM refused (its checks found no match) are dropped: they border a mismatch or an
+	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
+	/// booth) stay. 0: off.
+	int unmatched_margin_px = 2;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -113,6 +118,7 @@ struct DenseStats {
 	int unlit = 0;	       // prior pixels dropped as not under the pattern
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
+	int near_unmatched = 0; // dropped: within unmatched_margin_px of a pixel SGBM refused
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
