@@ -270,8 +270,20 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	cv::Mat D, W;
 	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
 	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
+	// Normalised: bilinear weights on invalid neighbours (their 0) would pull a pixel next to a
+	// hole towards disparity 0 (a quarter of it or more), a step the steep filter then cuts out.
+	for (int y = 0; y < size.height; ++y) {
+		float *dr = D.ptr<float>(y);
+		const float *wr = W.ptr<float>(y);
+		for (int x = 0; x < size.width; ++x)
+			dr[x] = wr[x] > 1e-3f ? dr[x] / wr[x] : 0.f;
+	}
 	D *= k;
+	const cv::Mat D_in = D.clone();
 	const cv::Size win(params.refine_window, params.refine_window);
+	// A window reaching into a hole would compare the left view with the right one warped by
+	// the hole's disparity (none): only pixels whose whole window is matched are refined.
+	cv::boxFilter(W, W, CV_32F, win);
 	cv::Mat muL;
 	cv::boxFilter(L, muL, CV_32F, win);
 	const cv::Mat Lz = L - muL;
@@ -305,7 +317,9 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			}
 		}
 	}
-	// Back to the matching resolution: the full-resolution value at each matching pixel.
+	// Back to the matching resolution: each matching pixel moves by what the refinement moved the
+	// full-resolution pixel at its place; one it did not refine keeps its own value exactly
+	// (reading the upsampled map back would blend it with its neighbours).
 	for (int y = 0; y < roi.height; ++y) {
 		float *out = disparity->ptr<float>(roi.y + y) + roi.x;
 		const uchar *vr = valid.ptr<uchar>(roi.y + y) + roi.x;
@@ -314,7 +328,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			if (!vr[x])
 				continue;
 			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
-			out[x] = D.at<float>(yy, xx) / float(k);
+			out[x] += (D.at<float>(yy, xx) - D_in.at<float>(yy, xx)) / float(k);
 		}
 	}
 }
@@ -735,6 +749,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	// Valid pixels: a prior, lit in both views, matched by SGBM (its left-right check passed).
 	cv::Mat valid(rp.size, CV_8U, cv::Scalar(0));
 	cv::Mat total(rp.size, CV_32F, cv::Scalar(0));
+	cv::Mat fail(rp.size, CV_8U, cv::Scalar(0)); // SGBM found no match (its checks refused one)
 	for (int y = 0; y < rp.size.height; ++y) {
 		const short *dr = disp16.ptr<short>(y);
 		const float *pr = prior.ptr<float>(y);
@@ -743,8 +758,12 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		uchar *vr = valid.ptr<uchar>(y);
 		float *tr = total.ptr<float>(y);
 		for (int x = 0; x < rp.size.width; ++x) {
-			if (pr[x] != pr[x] || dr[x] < mind * 16)
+			if (pr[x] != pr[x])
 				continue;
+			if (dr[x] < mind * 16) {
+				fail.at<uchar>(y, x) = 255;
+				continue;
+			}
 			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity)
 				continue;
 			stats.matched++;
@@ -766,6 +785,16 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			tr[x] = r + p;
 			vr[x] = 255;
 		}
+	}
+	// Next to a pixel SGBM refused (its left-right, uniqueness or speckle check) the match is
+	// unsure; next to one merely dark or unlit it is not.
+	if (params.unmatched_margin_px > 0) {
+		const int m = 2 * params.unmatched_margin_px + 1;
+		cv::Mat near;
+		cv::dilate(fail, near, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(m, m)));
+		near &= valid;
+		stats.near_unmatched = cv::countNonZero(near);
+		valid.setTo(0, near);
 	}
 	if (params.refine_iterations > 0)
 		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);

@@ -87,6 +87,11 @@ struct DenseParams {
 	/// path directions from edges that disagree (random booths 111, 604: such points near the
 	/// pair's border RMS 0.7-0.8 mm, one in ten > 1 mm off). 0: kept.
 	double flat_unfitted_reach_px = 8;
+	/// Matches within this many pixels (square neighbourhood, matching resolution) of a prior pixel
+	/// SGBM refused (its checks found no match) are dropped: they border a mismatch or an
+	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
+	/// booth) stay. 0: off.
+	int unmatched_margin_px = 2;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -119,6 +124,7 @@ struct DenseStats {
 	int unlit = 0;	       // prior pixels dropped as not under the pattern
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
+	int near_unmatched = 0; // dropped: within unmatched_margin_px of a pixel SGBM refused
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim

@@ -339,6 +339,7 @@ std::string report_json(const ReconReport &r)
 				   {"coarse_pixels", p.dense.coarse_pixels},
 				   {"unlit", p.dense.unlit},
 				   {"low_confidence", p.dense.low_confidence},
+				   {"near_unmatched", p.dense.near_unmatched},
 				   {"flat_filled", p.dense.flat_filled},
 				   {"flat_kept", p.dense.flat_kept},
 				   {"flat_dropped", p.dense.flat_dropped},
