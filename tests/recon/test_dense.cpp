@@ -206,19 +206,25 @@ void dense_points_lie_on_the_sphere(void **)
 	assert_int_equal(cloud.points.size(), cloud.border_mm.size());
 }
 
+// The sphere's middle pair with no code at all: the coarse search alone gives the prior.
+bool unseeded_pair(const SphereScene &s, const DenseParams &params, DenseCloud *ret_cloud, DenseStats *ret_stats)
+{
+	PartialModel none;
+	none.cam_a = 1;
+	none.cam_b = 2;
+	return dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, params, ret_cloud, ret_stats).ok();
+}
+
 // With no code at all the coarse search over the working volume still finds the sphere.
 void coarse_search_works_without_code(void **)
 {
 	SphereScene s;
 	render_sphere(&s);
-	PartialModel none;
-	none.cam_a = 1;
-	none.cam_b = 2;
 	DenseParams params;
 	params.scale = 1.0;
 	DenseCloud cloud;
 	DenseStats stats;
-	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, params, &cloud, &stats).ok());
+	assert_true(unseeded_pair(s, params, &cloud, &stats));
 	const Errors e = sphere_errors(s, cloud);
 	std::printf("dense without code: %zu points, coarse prior on %d px, median %.3f mm, p95 %.3f mm\n", e.n,
 		    stats.coarse_pixels, e.median, e.p95);
@@ -234,8 +240,7 @@ void coarse_search_works_without_code(void **)
 	whole.coarse_margin_px = 100000;
 	DenseCloud cloud_whole;
 	DenseStats stats_whole;
-	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, whole, &cloud_whole, &stats_whole)
-			    .ok());
+	assert_true(unseeded_pair(s, whole, &cloud_whole, &stats_whole));
 	const Errors ew = sphere_errors(s, cloud_whole);
 	std::printf("coarse over the whole frame: %zu points, coarse prior on %d px, median %.3f mm, p95 %.3f mm\n",
 		    ew.n, stats_whole.coarse_pixels, ew.median, ew.p95);
@@ -245,7 +250,7 @@ void coarse_search_works_without_code(void **)
 	// Without the coarse search and without code there is nothing to match.
 	DenseParams off = params;
 	off.coarse = false;
-	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, off, &cloud, &stats).ok());
+	assert_true(unseeded_pair(s, off, &cloud, &stats));
 	assert_int_equal(cloud.points.size(), 0);
 }
 
@@ -256,17 +261,14 @@ void matches_beside_refused_pixels_dropped(void **)
 {
 	SphereScene s;
 	render_sphere(&s);
-	PartialModel none;
-	none.cam_a = 1;
-	none.cam_b = 2;
 	DenseParams params;
 	params.scale = 1.0;
 	DenseParams off = params;
 	off.unmatched_margin_px = 0;
 	DenseCloud cloud, cloud_off;
 	DenseStats stats, stats_off;
-	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, params, &cloud, &stats).ok());
-	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], none, off, &cloud_off, &stats_off).ok());
+	assert_true(unseeded_pair(s, params, &cloud, &stats));
+	assert_true(unseeded_pair(s, off, &cloud_off, &stats_off));
 	const Errors e = sphere_errors(s, cloud), eo = sphere_errors(s, cloud_off);
 	std::printf("beside refused pixels: %d dropped; p95 %.3f mm (off: %.3f mm, %zu against %zu points)\n",
 		    stats.near_unmatched, e.p95, eo.p95, e.n, eo.n);
@@ -401,6 +403,22 @@ static void flat_squares_refilled_from_their_edges(void **)
 // A wide flat region darker than its edges (a shadow, the band between two projectors' zones) is
 // not a lit square: SGBM's guess holds only near the texture, so its pixels farther than
 // `flat_dark_reach_px` from a textured match go; the same region lit (a big square) stays whole.
+// Pixels of a flat band kept or dropped against the rule "kept exactly within `reach` pixels of
+// the band's edge" (a pixel one off the boundary either way is not judged: the distance
+// transform's metric rounds there).
+static int misjudged_in_band(const cv::Mat &valid, cv::Rect band, double reach)
+{
+	int wrong = 0;
+	for (int y = band.y; y < band.y + band.height; ++y)
+		for (int x = band.x; x < band.x + band.width; ++x) {
+			const int d = std::min({x - band.x + 1, band.x + band.width - x, y - band.y + 1,
+						band.y + band.height - y});
+			const bool kept = valid.at<uchar>(y, x) != 0;
+			wrong += (d <= reach) != kept && std::abs(d - reach) > 1;
+		}
+	return wrong;
+}
+
 static void dark_flat_regions_dropped_beyond_reach(void **)
 {
 	const cv::Size size(160, 120);
@@ -421,15 +439,7 @@ static void dark_flat_regions_dropped_beyond_reach(void **)
 			continue;
 		}
 		// Inside the band, a pixel stays exactly when it is within reach of the band's edge.
-		int wrong = 0;
-		for (int y = band.y; y < band.y + band.height; ++y)
-			for (int x = band.x; x < band.x + band.width; ++x) {
-				const int d = std::min({x - band.x + 1, band.x + band.width - x, y - band.y + 1,
-							band.y + band.height - y});
-				const bool kept = v.at<uchar>(y, x) != 0;
-				wrong += (d <= params.flat_dark_reach_px) != kept && std::abs(d - params.flat_dark_reach_px) > 1;
-			}
-		assert_int_equal(wrong, 0);
+		assert_int_equal(misjudged_in_band(v, band, params.flat_dark_reach_px), 0);
 		assert_true(stats.flat_dropped > (band.width - 12) * (band.height - 12));
 		assert_int_equal(cv::countNonZero(v), size.area() - stats.flat_dropped);
 		// Switched off: kept.
@@ -464,16 +474,7 @@ static void unfitted_flat_regions_dropped_beyond_reach(void **)
 	std::printf("unfitted flat region: %d px dropped of %d, %d kept\n", stats.flat_unfitted_dropped, band.area(),
 		    stats.flat_kept);
 	assert_int_equal(stats.flat_dropped, 0);
-	int wrong = 0;
-	for (int y = band.y; y < band.y + band.height; ++y)
-		for (int x = band.x; x < band.x + band.width; ++x) {
-			const int d = std::min({x - band.x + 1, band.x + band.width - x, y - band.y + 1,
-						band.y + band.height - y});
-			const bool kept = v.at<uchar>(y, x) != 0;
-			wrong += (d <= params.flat_unfitted_reach_px) != kept &&
-				 std::abs(d - params.flat_unfitted_reach_px) > 1;
-		}
-	assert_int_equal(wrong, 0);
+	assert_int_equal(misjudged_in_band(v, band, params.flat_unfitted_reach_px), 0);
 	assert_true(stats.flat_unfitted_dropped > (band.width - 20) * (band.height - 20));
 	assert_int_equal(stats.flat_unfitted_dropped + stats.flat_kept, band.area());
 	assert_int_equal(cv::countNonZero(v), size.area() - stats.flat_unfitted_dropped);
