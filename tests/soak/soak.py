@@ -419,7 +419,13 @@ class Soak:
         try:
             with open("/proc/%d/status" % pid) as f:
                 rss = int(re.search(r"VmRSS:\s+(\d+)", f.read()).group(1))
+            # The fewest of a few reads a tenth of a second apart: `idle` can still catch the
+            # daemon with a client's socket not yet reaped or the spool's queue directory open for
+            # a moment (seen: 13 fds at one read, 9 at the next); a leak is a floor that rises.
             fds = len(os.listdir("/proc/%d/fd" % pid))
+            for _ in range(4):
+                time.sleep(0.1)
+                fds = min(fds, len(os.listdir("/proc/%d/fd" % pid)))
             self.samples.append((pid, rss, fds))
             self.note("sample: facescand pid %d RSS %d KiB, %d fds" % (pid, rss, fds))
         except (OSError, AttributeError):
