@@ -1,4 +1,5 @@
 #include "daemon/clinic_output.hpp"
+#include "daemon/clock.hpp"
 #include "daemon/output.hpp"
 
 #include "capture/capture_set.hpp"
@@ -82,10 +83,9 @@ void add_outputs(const Config &cfg, const ReconOutput &out, const nlohmann::json
 	}
 	const bool have_mesh = want_mesh && s.ok();
 	auto timed = [&](const char *what, auto fn) {
-		const auto t0 = std::chrono::steady_clock::now();
+		const auto t0 = Clock::now();
 		Status r = fn();
-		(*meta)["output_ms"][what] =
-			std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+		(*meta)["output_ms"][what] = ms_since(t0);
 		if (!r.ok())
 			errors[what] = r.message();
 	};

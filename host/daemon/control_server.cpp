@@ -1,5 +1,6 @@
 #include "daemon/control_server.hpp"
 
+#include "daemon/clock.hpp"
 #include "daemon/log.hpp"
 
 #include <cerrno>
@@ -13,7 +14,6 @@
 namespace facescan::daemon {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 constexpr int kMaxClients = 32;

@@ -6,10 +6,10 @@
 #pragma once
 
 #include "common/status.hpp"
+#include "daemon/clock.hpp"
 #include "daemon/config.hpp"
 #include "daemon/control.hpp"
 
-#include <chrono>
 #include <functional>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -25,7 +25,7 @@ struct Client {
 	std::string wait_scan;  // scan id whose progress this client follows
 	// A whole request must arrive by then, however slowly its bytes trickle in (slowloris);
 	// renewed after each request. A client following a scan is exempt.
-	std::chrono::steady_clock::time_point deadline;
+	Clock::time_point deadline;
 	bool closing = false;
 };
 
@@ -64,7 +64,7 @@ public:
 	/// Client `i` is readable: reads, and hands each whole request to the handler.
 	void read_client(size_t i);
 	/// The soonest deadline of a client that owes us a request, if any.
-	std::optional<std::chrono::steady_clock::time_point> next_deadline() const;
+	std::optional<Clock::time_point> next_deadline() const;
 	/// Closes the clients whose deadline passed.
 	void expire_clients();
 	/// Drops the clients marked closing (after the poll entries are no longer used).
@@ -83,7 +83,7 @@ private:
 	Handler handler_;
 	int listen_fd_ = -1;
 	std::vector<std::unique_ptr<Client>> clients_;
-	std::chrono::steady_clock::time_point next_refusal_log_;
+	Clock::time_point next_refusal_log_;
 	long refusals_unlogged_ = 0;
 };
 

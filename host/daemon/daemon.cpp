@@ -11,6 +11,7 @@
 
 #include "common/version.hpp"
 #include "daemon/clinic_output.hpp"
+#include "daemon/clock.hpp"
 #include "daemon/control_server.hpp"
 #include "daemon/log.hpp"
 #include "daemon/output.hpp"
@@ -35,17 +36,11 @@
 namespace facescan::daemon {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
 
 namespace {
 
 constexpr int kRecoverEveryMs = 1000;
 constexpr int kMcuPollMs = 50;  // only for an MCU backend without an event fd
-
-double ms_since(Clock::time_point t)
-{
-	return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
 
 int ms_until(Clock::time_point t)
 {

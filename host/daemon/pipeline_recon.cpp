@@ -1,4 +1,5 @@
 #include "daemon/pipeline_recon.hpp"
+#include "daemon/clock.hpp"
 
 #include "capture/capture_set.hpp"
 #include "eval/eval.hpp"
@@ -8,14 +9,12 @@
 
 #include <opencv2/imgcodecs.hpp>
 
-#include <chrono>
 
 namespace facescan::daemon {
 
 void add_simulated_accuracy(const std::string &dir, const recon::Mesh &mesh, const std::vector<CameraModel> &cameras,
 			    ReconOutput *out)
 {
-	using Clock = std::chrono::steady_clock;
 	// A simulated set carries its ground truth (-ENOENT: a real capture, nothing to score).
 	const auto t_eval = Clock::now();
 	recon::Mesh truth;
@@ -35,14 +34,11 @@ void add_simulated_accuracy(const std::string &dir, const recon::Mesh &mesh, con
 					    {"against", "simulator ground truth"}};
 	else
 		out->quality["accuracy"] = {{"error", s.message()}};
-	out->stage_ms.emplace_back("accuracy",
-				   std::chrono::duration<double, std::milli>(Clock::now() - t_eval).count());
+	out->stage_ms.emplace_back("accuracy", ms_since(t_eval));
 }
 
 Status PipelineReconstructor::run(const Capture &capture, ReconOutput *ret_output)
 {
-	using Clock = std::chrono::steady_clock;
-	auto ms_since = [](Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); };
 	const auto t_read = Clock::now();
 	CaptureSet set;
 	Status s;

@@ -2,11 +2,11 @@
 
 #include "common/version.hpp"
 #include "daemon/clinic_output.hpp"
+#include "daemon/clock.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
 #include <cerrno>
-#include <chrono>
 #include <cstring>
 #include <sys/eventfd.h>
 #include <sys/stat.h>
@@ -15,17 +15,6 @@
 namespace facescan::daemon {
 
 using json = nlohmann::json;
-using Clock = std::chrono::steady_clock;
-
-namespace {
-
-double ms_since(Clock::time_point t)
-{
-	return std::chrono::duration<double, std::milli>(Clock::now() - t).count();
-}
-
-} // namespace
-
 Mailbox::~Mailbox()
 {
 	if (fd_ >= 0)
