@@ -102,7 +102,6 @@ struct Daemon::Impl {
 	json current;            // its record: what `last` reports once it ends
 	std::string fault;       // why we are in error
 	bool hardware_fault = false;
-	bool mcu_with_worker = false; // the worker fires the MCU: the loop leaves it alone
 	bool capture_waits = false;   // fired while a delivery ran: the capture starts when it ends
 	Clock::time_point stage_start = Clock::now();
 
@@ -319,7 +318,6 @@ struct Daemon::Impl {
 		transition(Event::fire);
 		stage_start = Clock::now();
 		current["state"] = "capturing";
-		mcu_with_worker = true;
 		progress("capturing", "[1/3] capturing");
 		if (worker.running()) {
 			capture_waits = true;
@@ -389,7 +387,6 @@ struct Daemon::Impl {
 
 	void on_job(job::Captured &m)
 	{
-		mcu_with_worker = false;
 		transition(Event::captured);
 		stage_start = Clock::now();
 		current["stage_ms"]["capture"] = m.ms;
@@ -445,7 +442,6 @@ struct Daemon::Impl {
 	void on_job(job::Failed &m)
 	{
 		worker.join(); // its last message: the thread is returning
-		mcu_with_worker = false;
 		fail_scan(m.stage, m.why, m.hardware);
 		try_recover();
 	}
@@ -470,11 +466,12 @@ struct Daemon::Impl {
 
 	// ---- the MCU -------------------------------------------------------------------------
 
-	// The loop reads the MCU's events unless the worker is firing it or the booth is in error
-	// (recovery reopens it; a press meanwhile is not a scan).
+	// The loop reads the MCU's events unless the worker is firing it (capturing: from the fire
+	// until the frames are in, the capture waiting for a delivery included) or the booth is in
+	// error (recovery reopens it; a press meanwhile is not a scan).
 	bool mcu_is_ours() const
 	{
-		return !mcu_with_worker && sm.state() != State::error;
+		return sm.state() != State::capturing && sm.state() != State::error;
 	}
 
 	void on_mcu()
