@@ -29,29 +29,6 @@ void DriverCameras::use_simulator(BoothFactory make_booth, std::string scene, do
 	work_dir_ = std::move(work_dir);
 }
 
-void DriverCameras::set_renderer(RenderFn render, int width, int height, std::string calibration_id)
-{
-	render_ = std::move(render);
-	width_ = width;
-	height_ = height;
-	calibration_id_ = std::move(calibration_id);
-}
-
-int DriverCameras::render_trampoline(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb,
-				     uint32_t width, uint32_t height, uint32_t stride, uint64_t *)
-{
-	auto *self = static_cast<DriverCameras *>(user);
-	cv::Mat bgr;
-	Status s = self->render_(static_cast<int>(camera), static_cast<int>(trigger_index), &bgr);
-	if (!s.ok())
-		return s.code();
-	if (bgr.cols != static_cast<int>(width) || bgr.rows != static_cast<int>(height) || bgr.type() != CV_8UC3)
-		return -EINVAL;
-	cv::Mat out(static_cast<int>(height), static_cast<int>(width), CV_8UC3, rgb, stride);
-	cv::cvtColor(bgr, out, cv::COLOR_BGR2RGB);
-	return 0;
-}
-
 Status DriverCameras::open()
 {
 	fscan_camera_destroy(cam_);
@@ -81,13 +58,7 @@ Status DriverCameras::open()
 			return Status::error(s.code(), "booth simulator: " + s.message());
 		calibration_id_ = "simulated rig, scene " + sim_scene_;
 	} else if (backend_ == "simulated") {
-		if (!render_)
-			return Status::error(ENOTSUP, "simulated cameras: no renderer in this build");
-		ops = &fscan_camera_sim_ops;
-		p.width = static_cast<uint32_t>(width_);
-		p.height = static_cast<uint32_t>(height_);
-		p.render = render_trampoline;
-		p.render_user = this;
+		return Status::error(ENOTSUP, "simulated cameras: no booth simulator in this program");
 	} else if (backend_ == "fake") {
 		ops = &fscan_camera_fake_ops;
 		calibration_id_ = "fake-calibration";

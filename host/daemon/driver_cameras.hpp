@@ -12,9 +12,6 @@ struct fscan_camera_params;
 
 namespace facescan::daemon {
 
-/// Renders camera `camera`'s frame of trigger `index` (0 pattern, 1 texture) as 8-bit BGR.
-using RenderFn = std::function<Status(int camera, int index, cv::Mat *ret_bgr)>;
-
 /// The booth simulator behind camera_backend "simulated". The program that opens the cameras
 /// makes it (facescand: host/facescand/sim_booth.hpp, over tools/sim); the daemon does not
 /// include the simulator (docs/architecture.md, "Layers").
@@ -34,12 +31,11 @@ using BoothFactory =
 
 class DriverCameras : public Cameras {
 public:
-	/// backend: "libcamera", "replay" (source = capture set directory), "sim" (render and
-	/// width/height required), "fake" (the driver's fake backend: synthetic 64x48 frames, faults
+	/// backend: "libcamera", "replay" (source = capture set directory), "simulated" (through
+	/// use_simulator()), "fake" (the driver's fake backend: synthetic 64x48 frames, faults
 	/// injected through handle() and facescan/camera_fake.h).
 	DriverCameras(std::string backend, std::string source, int count, int exposure_us, int max_skew_us);
 	~DriverCameras() override;
-	void set_renderer(RenderFn render, int width, int height, std::string calibration_id);
 	/// "simulated" through the booth `make_booth` makes at the first open(): each scan renders
 	/// `scene`; the rendered set (with ground truth) is written under work_dir for the
 	/// reconstruction.
@@ -65,8 +61,6 @@ public:
 private:
 	std::string backend_, source_;
 	int count_, exposure_us_, max_skew_us_;
-	RenderFn render_;
-	int width_ = 0, height_ = 0;
 	std::string calibration_id_;
 	fscan_camera *cam_ = nullptr;
 	BoothFactory make_booth_;
@@ -74,8 +68,6 @@ private:
 	std::string sim_scene_, work_dir_;
 	double sim_scale_ = 0;
 	uint32_t shots_ = 2;
-	static int render_trampoline(void *user, uint32_t camera, uint32_t trigger_index, uint8_t *rgb,
-				     uint32_t width, uint32_t height, uint32_t stride, uint64_t *ret_timestamp_ns);
 };
 
 } // namespace facescan::daemon
