@@ -7,10 +7,12 @@ PKGS="build-essential pkg-config cmake
 libopencv-dev libopencv-contrib-dev libeigen3-dev libcamera-dev libgpiod-dev
 libdraco-dev libcmocka-dev libembree-dev nlohmann-json3-dev libsystemd-dev
 gcc-arm-none-eabi libnewlib-arm-none-eabi binutils-arm-none-eabi qemu-system-arm
-clang libclang-rt-14-dev python3
+clang libclang-rt-14-dev python3 strace
 draco libtinygltf-dev libassimp-dev libdcmtk-dev libcpp-httplib-dev libssl-dev zlib1g-dev libbrotli-dev
 orthanc chromium
 qemu-system-x86 linux-headers-amd64 linux-source-6.1 busybox-static cpio kmod patch udev libcamera-ipa"
+# strace slows the share and the spool of a running facescand in tests/e2e/test_daemon_e2e.sh
+# (delay injection); the daemon has no test pauses of its own.
 # The last line is the VM tier (tests/vm/README.md): QEMU, the kernel headers and sources vimc
 # and gpio-sim are built from, the initramfs's tools, udev and the vimc IPA so libcamera finds
 # its cameras inside the VM. The kernel image itself is fetched into build/vm, not installed.

@@ -125,7 +125,7 @@ int fscan_storage_check_name(const char *name)
 }
 
 int fscan_storage_queue(struct fscan_storage *storage, const char *base, const char *scan_id, const char *dir,
-			const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms)
+			const struct fscan_storage_file *files, size_t n_files)
 {
 	if (!storage || (!files && n_files) || fscan_storage_check_name(base) < 0 || base[0] == '.' ||
 	    fscan_storage_check_name(scan_id) < 0 || fscan_storage_check_name(dir) < 0)
@@ -134,15 +134,15 @@ int fscan_storage_queue(struct fscan_storage *storage, const char *base, const c
 		if (fscan_storage_check_name(files[i].name) < 0 || (!files[i].data && files[i].len) ||
 		    !strcmp(files[i].name, FSCAN_STORAGE_MANIFEST))
 			return -EINVAL;
-	return storage->ops->queue(storage->ctx, base, scan_id, dir, files, n_files, pause_ms);
+	return storage->ops->queue(storage->ctx, base, scan_id, dir, files, n_files);
 }
 
 int fscan_storage_deliver_next(struct fscan_storage *storage, struct fscan_storage_delivery *ret,
-			       fscan_storage_file_cb on_file, void *ud, unsigned pause_ms)
+			       fscan_storage_file_cb on_file, void *ud)
 {
 	if (!storage || !ret)
 		return -EINVAL;
-	return storage->ops->deliver_next(storage->ctx, ret, on_file, ud, pause_ms);
+	return storage->ops->deliver_next(storage->ctx, ret, on_file, ud);
 }
 
 int fscan_storage_recover(struct fscan_storage *storage, fscan_storage_id_cb on_failed, void *ud)

@@ -220,10 +220,9 @@ static void scan_remove(struct fake *f, size_t i)
 }
 
 static int fake_queue(void *ctx, const char *base, const char *scan_id, const char *dir,
-		      const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms)
+		      const struct fscan_storage_file *files, size_t n_files)
 {
 	struct fake *f = ctx;
-	(void)pause_ms;
 	if (!f->spool_writable)
 		return -EROFS;
 	for (size_t i = 0; i < f->n_scans; i++)
@@ -266,11 +265,9 @@ static int fake_queue(void *ctx, const char *base, const char *scan_id, const ch
 	return 0;
 }
 
-static int fake_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file, void *ud,
-			     unsigned pause_ms)
+static int fake_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file, void *ud)
 {
 	struct fake *f = ctx;
-	(void)pause_ms;
 	size_t i = 0;
 	while (i < f->n_scans && !f->scans[i].complete)
 		i++;

@@ -44,13 +44,6 @@ static int free_bytes(const char *dir, uint64_t *ret)
 	return 0;
 }
 
-static void pause_ms(unsigned ms)
-{
-	struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
-	while (ms && nanosleep(&ts, &ts) < 0 && errno == EINTR)
-		;
-}
-
 static int open_dir_at(int dirfd, const char *name)
 {
 	int fd = openat(dirfd, name, O_RDONLY | O_DIRECTORY | O_CLOEXEC | O_NOFOLLOW);
@@ -550,7 +543,7 @@ static int manifest_read(int entry_fd, struct manifest *ret)
 }
 
 static int posix_queue(void *ctx, const char *base, const char *scan_id, const char *dir,
-		       const struct fscan_storage_file *files, size_t n_files, unsigned pause)
+		       const struct fscan_storage_file *files, size_t n_files)
 {
 	struct posix *p = ctx;
 	uint64_t avail = 0, bytes = 0;
@@ -587,7 +580,6 @@ static int posix_queue(void *ctx, const char *base, const char *scan_id, const c
 		if (r < 0)
 			goto out;
 		mlen += strlen(files[i].name) + 1;
-		pause_ms(pause);
 	}
 	if (!(man = malloc(mlen + 1))) {
 		r = -ENOMEM;
@@ -654,7 +646,7 @@ static int posix_queued(void *ctx, const char *scan_id)
 }
 
 static int deliver_entry(struct posix *p, int spool, const char *base, struct fscan_storage_delivery *ret,
-			 fscan_storage_file_cb on_file, void *ud, unsigned pause)
+			 fscan_storage_file_cb on_file, void *ud)
 {
 	int fd = open_dir_at(spool, base);
 	if (fd < 0)
@@ -693,8 +685,6 @@ static int deliver_entry(struct posix *p, int spool, const char *base, struct fs
 			r = deliver(p, rel, data[i], lens[i]);
 			if (r == 0 && on_file)
 				on_file(rel, ud);
-			if (r == 0)
-				pause_ms(pause);
 		}
 	if (r < 0)
 		goto out;
@@ -724,7 +714,7 @@ out:
 }
 
 static int posix_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file,
-			      void *ud, unsigned pause)
+			      void *ud)
 {
 	struct posix *p = ctx;
 	int spool;
@@ -735,7 +725,7 @@ static int posix_deliver_next(void *ctx, struct fscan_storage_delivery *ret, fsc
 		return r;
 	for (size_t i = 0; r == 0 && i < n; i++)
 		if (v[i][0] != '.')
-			r = deliver_entry(p, spool, v[i], ret, on_file, ud, pause);
+			r = deliver_entry(p, spool, v[i], ret, on_file, ud);
 	free_names(v, n);
 	close(spool);
 	return r;

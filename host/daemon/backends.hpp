@@ -53,17 +53,17 @@ public:
 	virtual Status fire(int timeout_ms, TriggerReport *ret_report) = 0;
 	/// Aborts an armed or running sequence (lights off). Best effort.
 	virtual Status abort() = 0;
-	/// A file descriptor that becomes readable when events may be pending, or -1 (poll often).
-	/// It may change across open(); the loop asks again before each poll().
-	virtual int event_fd() const
+	/// The file descriptors the loop watches: one becomes readable when events may be pending
+	/// (the link's, a GPIO line's). Nothing is polled on a timer: a backend with events has an
+	/// fd for them. Without the link (down, or not open) its fd is missing. They may change
+	/// across open(); the loop asks again before each poll().
+	virtual std::vector<int> event_fds() const = 0;
+	/// When the loop must collect events although no fd woke it: -1 not; 0 now (events the
+	/// backend read while a command waited for its answer); N > 0 within N ms (a GPIO level
+	/// being debounced settles then).
+	virtual int events_due_ms() const
 	{
 		return -1;
-	}
-	/// True when events wait inside the backend where event_fd() does not show them (read while
-	/// a command waited for its answer): the loop collects them before it polls again.
-	virtual bool events_queued() const
-	{
-		return false;
 	}
 	/// Collects pending events without blocking. A lost link shows as a `disconnected` event.
 	virtual Status poll_events(std::vector<McuEvent> *ret_events) = 0;

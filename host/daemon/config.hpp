@@ -51,8 +51,6 @@ struct Config {
 	int recon_timeout_ms = 240000;           // the reconstruction worker is killed after this
 	int recon_memory_mb = 4096;              // address-space limit of the worker (0: none)
 	std::string recon_worker;                // the facescan CLI (recon verb = the worker); empty: beside facescand
-	int test_delay_write_ms = 0;             // fault tests only: pause between spooled files
-	int test_delay_deliver_ms = 0;           // fault tests only: pause between delivered files
 	// What a scan writes besides .drc/.png/.json (host/daemon/clinic_output.cpp), and where to.
 	bool output_glb = true;                  // <base>.glb: glTF binary for browsers and the viewer
 	bool output_thumbnail = true;            // <base>_thumb.png: front and ±45° renders

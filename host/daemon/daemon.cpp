@@ -4,7 +4,7 @@
 // StateMachine. This file owns the state of the booth and is the only one that changes it.
 //
 // One poll() waits on one source per handler: the worker's mailbox, the listening socket, the
-// MCU's event fd (when the backend has one) and each client; then the deadlines that are due
+// MCU's event fds (its link, the GPIO button line) and each client; then the deadlines that are due
 // fire, from one table (deadlines()) that also gives poll its timeout. Nothing in the loop
 // waits for the worker: its jobs end with a message, and the loop acts on that message.
 #include "daemon/daemon.hpp"
@@ -40,7 +40,9 @@ using json = nlohmann::json;
 namespace {
 
 constexpr int kRecoverEveryMs = 1000;
-constexpr int kMcuPollMs = 50;  // only for an MCU backend without an event fd
+// A deadline that is due whenever it is read: fire_due() takes `now` before it builds the table,
+// so Clock::now() in the table would always be a little late.
+constexpr Clock::time_point kAtOnce{};
 
 int ms_until(Clock::time_point t)
 {
@@ -109,11 +111,11 @@ struct Daemon::Impl {
 	Clock::time_point arm_deadline;
 	Clock::time_point next_recover = Clock::now();
 	Clock::time_point next_delivery = Clock::now();
-	Clock::time_point next_mcu_poll = Clock::now();
 	Clock::time_point next_ping = Clock::now();
 
 	Impl(Config c, Backends b)
-		: cfg(std::move(c)), be(std::move(b)), spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb, cfg.share_marker)
+		: cfg(std::move(c)), be(std::move(b)),
+		  spool(cfg.spool_dir, cfg.share_dir, cfg.min_free_mb, cfg.share_marker, be.storage)
 	{
 	}
 	~Impl()
@@ -476,7 +478,6 @@ struct Daemon::Impl {
 
 	void on_mcu()
 	{
-		next_mcu_poll = Clock::now() + std::chrono::milliseconds(kMcuPollMs);
 		if (!mcu_is_ours())
 			return;
 		std::vector<McuEvent> events;
@@ -585,10 +586,13 @@ struct Daemon::Impl {
 		if (!sm.busy() && !worker.running() && (spool.pending() > 0 || clinic::pacs_pending(cfg)))
 			d.push_back({next_delivery, &Impl::start_delivery});
 		if (mcu_is_ours()) {
-			if (be.mcu->event_fd() < 0)
-				d.push_back({next_mcu_poll, &Impl::on_mcu});
-			else if (be.mcu->events_queued())
-				d.push_back({Clock::now(), &Impl::on_mcu}); // the fd would not wake us for these
+			// A link a command found down has no fd left to wake us: on_mcu makes it the fault.
+			bool lost = !be.mcu->is_open() && (sm.state() == State::idle || sm.state() == State::armed);
+			int due = lost ? 0 : be.mcu->events_due_ms(); // what the fds would not show
+			if (due == 0)
+				d.push_back({kAtOnce, &Impl::on_mcu});
+			else if (due > 0)
+				d.push_back({Clock::now() + std::chrono::milliseconds(due), &Impl::on_mcu});
 		}
 		if (watchdog_usec)
 			d.push_back({next_ping, &Impl::ping_watchdog});
@@ -629,7 +633,10 @@ struct Daemon::Impl {
 		std::vector<pollfd> fds;
 		fds.push_back({mailbox.fd(), POLLIN, 0});
 		fds.push_back({control.listen_fd(), POLLIN, 0});
-		fds.push_back({mcu_is_ours() ? be.mcu->event_fd() : -1, POLLIN, 0});
+		const size_t first_mcu = fds.size();
+		if (mcu_is_ours())
+			for (int fd : be.mcu->event_fds())
+				fds.push_back({fd, POLLIN, 0});
 		const size_t first_client = fds.size();
 		for (const auto &c : control.clients())
 			fds.push_back({c->fd, POLLIN, 0});
@@ -639,7 +646,8 @@ struct Daemon::Impl {
 		if (r > 0) {
 			if (fds[0].revents)
 				on_mailbox();
-			if (fds[2].revents)
+			if (std::any_of(fds.begin() + first_mcu, fds.begin() + first_client,
+					[](const pollfd &p) { return p.revents != 0; }))
 				on_mcu();
 			if (fds[1].revents)
 				control.accept_clients();
@@ -685,7 +693,7 @@ void Daemon::request_stop()
 Status Daemon::start()
 {
 	Impl &d = *impl_;
-	if (!d.be.mcu || !d.be.cameras || !d.be.recon)
+	if (!d.be.mcu || !d.be.cameras || !d.be.recon || !d.be.storage)
 		return Status::error(EINVAL, "facescand: a backend is missing");
 	Status s = d.mailbox.open();
 	if (!s.ok())

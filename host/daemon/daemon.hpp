@@ -10,6 +10,7 @@
 #include "daemon/backends.hpp"
 #include "daemon/config.hpp"
 #include "daemon/state_machine.hpp"
+#include "facescan/storage.h"
 
 #include <functional>
 #include <memory>
@@ -20,6 +21,9 @@ struct Backends {
 	std::unique_ptr<Mcu> mcu;
 	std::unique_ptr<Cameras> cameras;
 	std::unique_ptr<Reconstructor> recon;
+	/// The storage driver's backend under the spool (share_dir, spool_dir): the real files.
+	/// In-process tests may pass another table (the fake, or one that slows the real one).
+	const fscan_storage_ops *storage = &fscan_storage_posix_ops;
 };
 
 class Daemon {

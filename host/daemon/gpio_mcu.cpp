@@ -1,8 +1,11 @@
 #include "daemon/gpio_mcu.hpp"
 
 #include "daemon/config.hpp"
+#include "daemon/log.hpp"
 #include "facescan/gpio.h"
 
+#include <algorithm>
+#include <cerrno>
 #include <cstring>
 
 namespace facescan::daemon {
@@ -49,17 +52,42 @@ Status GpioMcu::abort()
 	return inner_->abort();
 }
 
+std::vector<int> GpioMcu::event_fds() const
+{
+	std::vector<int> fds = inner_->event_fds();
+	int fd = line_lost_ ? -1 : fscan_gpio_fd(gpio_);
+	if (fd >= 0)
+		fds.push_back(fd);
+	return fds;
+}
+
+int GpioMcu::events_due_ms() const
+{
+	int link = inner_->events_due_ms();
+	int line = line_lost_ ? -1 : fscan_gpio_timeout_ms(gpio_);
+	if (link < 0)
+		return line;
+	return line < 0 ? link : std::min(link, line);
+}
+
 Status GpioMcu::poll_events(std::vector<McuEvent> *ret_events)
 {
 	Status s = inner_->poll_events(ret_events);
 	// The MCU's own button input is not wired in this booth: presses come from the GPIO line.
 	for (auto it = ret_events->begin(); it != ret_events->end();)
 		it = it->type == McuEvent::Type::button ? ret_events->erase(it) : it + 1;
-	for (;;) {
+	while (!line_lost_) {
 		fscan_gpio_event ev;
 		int rc = fscan_gpio_read_event(gpio_, 0, &ev);
-		if (rc < 0)
+		if (rc == -ETIMEDOUT)
 			break;
+		if (rc < 0) {
+			// A failed line's fd stays readable (POLLERR): watched on, it would spin the loop.
+			line_lost_ = true;
+			log(LOG_ERR, "GPIO button line: %s; the booth button is off until facescand restarts",
+			    std::strerror(-rc));
+			break;
+		}
 		if (ev.type == FSCAN_GPIO_BUTTON_PRESSED)
 			ret_events->push_back({McuEvent::Type::button, "gpio"});
 	}

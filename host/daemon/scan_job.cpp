@@ -83,7 +83,7 @@ void Worker::start_delivery()
 void Worker::deliver()
 {
 	job::DeliveryDone done;
-	Status s = spool_.deliver(&done.scans, cfg_.test_delay_deliver_ms, &stop_delivery_);
+	Status s = spool_.deliver(&done.scans, &stop_delivery_);
 	if (!stop_delivery_)
 		clinic::retry_pacs(cfg_); // after the share: a late send can then record itself in the metadata
 	if (!s.ok())
@@ -173,14 +173,14 @@ void Worker::scan(const json &rec)
 	std::vector<SpoolFile> files = {{base + ".drc", out.drc}, {base + ".png", out.png}};
 	clinic::add_outputs(cfg_, out, rec, &files, &meta); // .glb, thumbnail, .stl/.obj, DICOM, manifest
 	files.push_back({base + ".json", meta.dump(1) + "\n"});
-	s = spool_.put(base, id, rec["patient_id"], files, cfg_.test_delay_write_ms);
+	s = spool_.put(base, id, rec["patient_id"], files);
 	if (!s.ok()) {
 		mailbox_.post(job::Failed{"writing", "spool: " + s.message() + capture_kept(cfg_.spool_dir, base), false});
 		return;
 	}
 	be_.recon->release(base);
 	std::vector<Delivered> delivered;
-	Status d = spool_.deliver(&delivered, cfg_.test_delay_deliver_ms);
+	Status d = spool_.deliver(&delivered);
 	job::Written w;
 	for (const Delivered &x : delivered)
 		if (x.scan_id == id) {

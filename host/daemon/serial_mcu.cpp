@@ -228,17 +228,19 @@ Status SerialMcu::abort()
 	return rc < 0 ? link_error(rc, "abort") : Status();
 }
 
-int SerialMcu::event_fd() const
+std::vector<int> SerialMcu::event_fds() const
 {
 	std::lock_guard<std::mutex> lock(mu_);
 	int fd = link_ ? fscan_serial_fd(link_) : -1;
-	return fd < 0 ? -1 : fd;
+	if (fd < 0)
+		return {};
+	return {fd};
 }
 
-bool SerialMcu::events_queued() const
+int SerialMcu::events_due_ms() const
 {
 	std::lock_guard<std::mutex> lock(mu_);
-	return link_ && fscan_serial_pending(link_);
+	return link_ && fscan_serial_pending(link_) ? 0 : -1;
 }
 
 Status SerialMcu::poll_events(std::vector<McuEvent> *ret_events)

@@ -28,9 +28,9 @@ public:
 	Status arm(const Timing &timing) override;
 	Status fire(int timeout_ms, TriggerReport *ret_report) override;
 	Status abort() override;
-	/// The serial transport's fd (a tty, or the fake's socket), -1 while the link is down.
-	int event_fd() const override;
-	bool events_queued() const override;
+	/// The serial transport's fd (a tty, or the fake's socket); none while the link is down.
+	std::vector<int> event_fds() const override;
+	int events_due_ms() const override;
 	Status poll_events(std::vector<McuEvent> *ret_events) override;
 	Status simulate_button() override;
 

@@ -81,15 +81,14 @@ Status Spool::init()
 }
 
 Status Spool::put(const std::string &base, const std::string &scan_id, const std::string &patient_id,
-		  const std::vector<SpoolFile> &files, int delay_ms)
+		  const std::vector<SpoolFile> &files)
 {
 	if (!st_)
 		return Status::error(EBADF, "spool " + queue_dir_ + " is not open");
 	std::vector<fscan_storage_file> v;
 	for (const SpoolFile &f : files)
 		v.push_back({f.name.c_str(), f.contents.data(), f.contents.size()});
-	int rc = fscan_storage_queue(st_.get(), base.c_str(), scan_id.c_str(), patient_id.c_str(), v.data(), v.size(),
-				     delay_ms > 0 ? static_cast<unsigned>(delay_ms) : 0);
+	int rc = fscan_storage_queue(st_.get(), base.c_str(), scan_id.c_str(), patient_id.c_str(), v.data(), v.size());
 	if (rc < 0)
 		return errno_status(-rc, "spool " + queue_dir_ + "/" + base);
 	return Status();
@@ -126,7 +125,7 @@ Status Spool::share_error(int rc) const
 	return errno_status(-rc, "deliver to share " + share_dir_);
 }
 
-Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms, const std::atomic<bool> *stop)
+Status Spool::deliver(std::vector<Delivered> *ret_delivered, const std::atomic<bool> *stop)
 {
 	ret_delivered->clear();
 	if (!st_)
@@ -144,7 +143,7 @@ Status Spool::deliver(std::vector<Delivered> *ret_delivered, int delay_ms, const
 				Paths *p = static_cast<Paths *>(ud);
 				p->v.push_back(*p->share + "/" + rel);
 			},
-			&paths, delay_ms > 0 ? static_cast<unsigned>(delay_ms) : 0);
+			&paths);
 		if (rc == 0)
 			return Status();
 		if (rc < 0)

@@ -44,13 +44,13 @@ public:
 	Status init();
 	/// fscan_storage_queue(): the scan's files, then its manifest.
 	Status put(const std::string &base, const std::string &scan_id, const std::string &patient_id,
-		   const std::vector<SpoolFile> &files, int delay_ms);
+		   const std::vector<SpoolFile> &files);
 	/// fscan_storage_recover(): the scan ids of entries interrupted while spooled.
 	Status recover(std::vector<std::string> *ret_failed_scan_ids);
 	/// fscan_storage_deliver_next() until the queue is empty or the share fails, which is
 	/// returned (-ENOENT: share missing or not mounted, -ENOSPC: share full, -EIO...), or until
 	/// *stop (set from another thread) is seen between two scans.
-	Status deliver(std::vector<Delivered> *ret_delivered, int delay_ms, const std::atomic<bool> *stop = nullptr);
+	Status deliver(std::vector<Delivered> *ret_delivered, const std::atomic<bool> *stop = nullptr);
 	/// fscan_storage_writable(), with a message naming the spool.
 	Status writable() const;
 	/// Complete entries waiting.

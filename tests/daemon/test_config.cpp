@@ -63,6 +63,9 @@ static void test_values(void **)
 static void test_refused_lines(void **)
 {
 	expect_refused("mode = clinic\nfrobnicate = 1\n", "t.conf:2: unknown key 'frobnicate'");
+	// the fault-test pauses are gone from the shipped daemon (tests slow the share from outside)
+	expect_refused("test_delay_write_ms = 1500\n", "t.conf:1: unknown key 'test_delay_write_ms'");
+	expect_refused("test_delay_deliver_ms = 1000\n", "t.conf:1: unknown key 'test_delay_deliver_ms'");
 	expect_refused("\n\nshare_dir /x\n", "t.conf:3: expected 'key = value'");
 	expect_refused("= 3\n", "t.conf:1: missing key");
 	expect_refused("mode = kiosk\n", "t.conf:1: mode: 'kiosk' is not one of");

@@ -16,8 +16,10 @@
 #include "facescan/gpio.h"
 #include "facescan/gpio_fake.h"
 #include "facescan/serial_fake.h"
+#include "facescan/storage.h"
 #include "daemon/log.hpp"
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -26,6 +28,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <poll.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
@@ -58,6 +61,25 @@ Backends fake_booth(const Config &cfg)
 		fail_msg("make_backends: %s", s.message().c_str());
 	return b;
 }
+
+// The real spool and share, slowed from the test (facescand has no pause of its own to ship):
+// the storage driver's posix backend, each scan entry's queue() starting queue_delay_ms late, so
+// the daemon stays in `writing` that long. One Rig at a time sets it.
+std::atomic<int> queue_delay_ms{0};
+
+int slow_queue(void *ctx, const char *base, const char *scan_id, const char *dir, const fscan_storage_file *files,
+	       size_t n_files)
+{
+	std::this_thread::sleep_for(std::chrono::milliseconds(queue_delay_ms.load()));
+	return fscan_storage_posix_ops.queue(ctx, base, scan_id, dir, files, n_files);
+}
+
+const fscan_storage_ops slow_posix_ops = [] {
+	fscan_storage_ops ops = fscan_storage_posix_ops;
+	ops.name = "posix, slow queue";
+	ops.queue = slow_queue;
+	return ops;
+}();
 
 // The back doors of the fake MCU (the firmware core behind the fake serial device).
 struct FakeMcuDevice {
@@ -93,7 +115,8 @@ struct Rig {
 	std::unique_ptr<Daemon> d;
 	std::thread loop;
 
-	explicit Rig(Mode mode = Mode::clinic, int delay_write_ms = 0, fscan_gpio *gpio = nullptr,
+	// queue_delay: how much later than it would each scan's spool write starts (slow_posix_ops)
+	explicit Rig(Mode mode = Mode::clinic, int queue_delay = 0, fscan_gpio *gpio = nullptr,
 		     int client_timeout_ms = 5000)
 	{
 		char t[] = "/tmp/facescand-test-XXXXXX";
@@ -112,7 +135,6 @@ struct Rig {
 		cfg.mcu_timeout_ms = 200;
 		cfg.capture_timeout_ms = 200;
 		cfg.arm_timeout_ms = 1000;
-		cfg.test_delay_write_ms = delay_write_ms;
 		cfg.client_timeout_ms = client_timeout_ms;
 		cfg.camera_count = 4;
 		Backends b = fake_booth(cfg);
@@ -123,6 +145,9 @@ struct Rig {
 		assert_non_null(recon);
 		if (gpio)
 			b.mcu = std::make_unique<GpioMcu>(std::move(b.mcu), gpio);
+		queue_delay_ms = queue_delay;
+		if (queue_delay > 0)
+			b.storage = &slow_posix_ops;
 		d = std::make_unique<Daemon>(cfg, std::move(b));
 		facescan::Status s = d->start();
 		if (!s.ok())
@@ -134,6 +159,7 @@ struct Rig {
 		d->request_stop();
 		loop.join();
 		d.reset();
+		queue_delay_ms = 0;
 		std::string cmd = "rm -rf '" + dir + "'";
 		if (std::system(cmd.c_str()) != 0)
 			std::fprintf(stderr, "cannot remove %s\n", dir.c_str());
@@ -403,6 +429,63 @@ static void test_booth_button(void **)
 	assert_no_log_mentions("BOOTH-7");
 }
 
+// GpioMcu gives the loop the button line's fd beside the link's, and the debounce's deadline:
+// nothing is polled on a timer, so an edge that left the fd quiet would never be seen. The fake
+// line's fd is its pipe; the real line's is libgpiod's event fd, the same contract on gpio-sim
+// (tests/vm/test_vm_gpio.c, test_fd_wakes_on_an_edge).
+static void test_gpio_mcu_watched_not_polled(void **)
+{
+	fscan_gpio_config g{};
+	g.chip = "fake";
+	g.button_line = 3;
+	g.led_line = 4;
+	g.reset_line = 5;
+	g.debounce_ms = 1000; // wide, so that a slow machine cannot let the hold pass unseen
+	fscan_gpio *gpio = nullptr;
+	assert_int_equal(fscan_gpio_create(&fscan_gpio_fake_ops, &g, &gpio), 0);
+	Config cfg;
+	cfg.serial_device = "fake";
+	cfg.camera_backend = "fake";
+	cfg.recon_backend = "fake";
+	GpioMcu m(std::move(fake_booth(cfg).mcu), gpio);
+	auto readable = [&m](int timeout_ms) {
+		std::vector<pollfd> p;
+		for (int fd : m.event_fds())
+			p.push_back({fd, POLLIN, 0});
+		return poll(p.data(), p.size(), timeout_ms) > 0;
+	};
+	// link down: only the line is watched; up: both
+	assert_int_equal(m.event_fds().size(), 1);
+	assert_true(m.open().ok());
+	assert_int_equal(m.event_fds().size(), 2);
+	assert_false(readable(0));
+	assert_int_equal(m.events_due_ms(), -1);
+	// an edge wakes the loop at once
+	assert_int_equal(fscan_gpio_fake_button(gpio, true), 0);
+	assert_true(readable(200));
+	std::vector<McuEvent> ev;
+	assert_true(m.poll_events(&ev).ok());
+	assert_true(ev.empty()); // not held for the window yet
+	assert_false(readable(0));
+	int due = m.events_due_ms();
+	std::printf("  press held, settles in %d ms\n", due);
+	assert_in_range(due, 1, 1000);
+	// held for the window: due now, and one press
+	assert_int_equal(fscan_gpio_fake_advance_ns(gpio, 1100000000), 0);
+	assert_int_equal(m.events_due_ms(), 0);
+	assert_true(m.poll_events(&ev).ok());
+	assert_int_equal(ev.size(), 1);
+	assert_true(ev[0].type == McuEvent::Type::button);
+	assert_int_equal(m.events_due_ms(), -1);
+	// a line that fails (its chip gone) is watched no more: its fd would stay readable
+	assert_int_equal(fscan_gpio_fake_fail_next(gpio, "read_edge", -ENODEV), 0);
+	assert_true(m.poll_events(&ev).ok());
+	assert_true(ev.empty());
+	assert_int_equal(m.event_fds().size(), 1);
+	assert_int_equal(m.events_due_ms(), -1);
+	m.close();
+}
+
 static void test_gpio_button_and_led(void **)
 {
 	fscan_gpio_config g{};
@@ -538,7 +621,7 @@ static void test_check_capture_skew(void **)
 // crash recovery on the live spool and declared the running scan failed.
 static void test_second_instance_refused(void **)
 {
-	Rig rig(Mode::clinic, 300);
+	Rig rig(Mode::clinic, 1500);
 	json first = rig.ask({{"cmd", "scan"}, {"patient", "LIVE-1"}});
 	assert_true(first["ok"].get<bool>());
 	assert_true(rig.wait_state(State::writing, 3000));
@@ -707,6 +790,7 @@ int main()
 		cmocka_unit_test(test_socket_mode_and_busy),
 		cmocka_unit_test(test_malformed_and_oversize),
 		cmocka_unit_test(test_booth_button),
+		cmocka_unit_test(test_gpio_mcu_watched_not_polled),
 		cmocka_unit_test(test_gpio_button_and_led),
 		cmocka_unit_test(test_mcu_unplugged_mid_scan),
 		cmocka_unit_test(test_mcu_unplugged_while_idle),

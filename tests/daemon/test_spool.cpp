@@ -92,10 +92,10 @@ static void test_deliver_now(void **)
 	mkdir(share.c_str(), 0755);
 	Spool sp(spool, share, 0);
 	assert_true(sp.init().ok());
-	assert_true(sp.put("20260101T000000Z_aaaaaaaaaaaa", "aaaaaaaaaaaa", "P1", files_of("20260101T000000Z_aaaaaaaaaaaa"), 0).ok());
+	assert_true(sp.put("20260101T000000Z_aaaaaaaaaaaa", "aaaaaaaaaaaa", "P1", files_of("20260101T000000Z_aaaaaaaaaaaa")).ok());
 	assert_int_equal(sp.pending(), 1);
 	std::vector<Delivered> d;
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 1);
 	assert_string_equal(d[0].scan_id.c_str(), "aaaaaaaaaaaa");
 	assert_int_equal(d[0].paths.size(), 3);
@@ -115,9 +115,9 @@ static void test_share_missing_then_back(void **)
 	assert_true(sp.init().ok());
 	const char *bases[] = {"20260101T000001Z_bbbbbbbbbbbb", "20260101T000002Z_cccccccccccc"};
 	for (const char *b : bases)
-		assert_true(sp.put(b, std::string(b).substr(17), "P2", files_of(b), 0).ok());
+		assert_true(sp.put(b, std::string(b).substr(17), "P2", files_of(b)).ok());
 	std::vector<Delivered> d;
-	facescan::Status s = sp.deliver(&d, 0);
+	facescan::Status s = sp.deliver(&d);
 	assert_int_equal(s.code(), -ENOENT);
 	assert_int_equal(d.size(), 0);
 	assert_int_equal(sp.pending(), 2);
@@ -125,13 +125,13 @@ static void test_share_missing_then_back(void **)
 	assert_int_equal(stat(share.c_str(), &st), -1); // the share root is never created
 
 	mkdir(share.c_str(), 0755);
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 2);
 	assert_string_equal(d[0].scan_id.c_str(), "bbbbbbbbbbbb"); // oldest first
 	assert_string_equal(d[1].scan_id.c_str(), "cccccccccccc");
 	assert_int_equal(ls(share + "/P2").size(), 6);
 	// Delivered once: a second pass finds nothing to do.
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 0);
 	assert_int_equal(ls(share + "/P2").size(), 6);
 }
@@ -142,9 +142,9 @@ static void test_share_full(void **)
 	mkdir(share.c_str(), 0755);
 	Spool sp(spool, share, 1L << 30); // needs a petabyte free
 	assert_true(sp.init().ok());
-	assert_true(sp.put("20260101T000003Z_dddddddddddd", "dddddddddddd", "P3", files_of("x"), 0).ok());
+	assert_true(sp.put("20260101T000003Z_dddddddddddd", "dddddddddddd", "P3", files_of("x")).ok());
 	std::vector<Delivered> d;
-	assert_int_equal(sp.deliver(&d, 0).code(), -ENOSPC);
+	assert_int_equal(sp.deliver(&d).code(), -ENOSPC);
 	assert_int_equal(sp.pending(), 1);
 	assert_int_equal(ls(share).size(), 0);
 }
@@ -163,7 +163,7 @@ static void test_interrupted_entry_reported_failed(void **)
 	mkdir((spool + "/queue/.done-20260101T000000Z_ffffffffffff").c_str(), 0750);
 	assert_int_equal(sp.pending(), 0);
 	std::vector<Delivered> d;
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 0); // never delivered
 	std::vector<std::string> failed;
 	assert_true(sp.recover(&failed).ok());
@@ -182,12 +182,12 @@ static void test_redelivery_after_crash_replaces(void **)
 	Spool sp(spool, share, 0);
 	assert_true(sp.init().ok());
 	const std::string b = "20260101T000005Z_111111111111";
-	assert_true(sp.put(b, "111111111111", "P5", files_of(b), 0).ok());
+	assert_true(sp.put(b, "111111111111", "P5", files_of(b)).ok());
 	mkdir((share + "/P5").c_str(), 0750);
 	std::ofstream(share + "/P5/" + b + ".drc") << "mesh-" << b;
 	std::ofstream(share + "/P5/.fscan-tmp.99999998.3." + b + ".png") << "half";
 	std::vector<Delivered> d;
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	std::vector<std::string> got = ls(share + "/P5");
 	assert_int_equal(got.size(), 3);
 	for (const std::string &n : got)
@@ -203,9 +203,9 @@ static void test_share_not_mounted(void **)
 	Spool sp(spool, share, 0, ".facescan-share");
 	assert_true(sp.init().ok());
 	const std::string base = "20260101T000009Z_999999999999";
-	assert_true(sp.put(base, "999999999999", "P9", files_of(base), 0).ok());
+	assert_true(sp.put(base, "999999999999", "P9", files_of(base)).ok());
 	std::vector<Delivered> d;
-	facescan::Status s = sp.deliver(&d, 0);
+	facescan::Status s = sp.deliver(&d);
 	std::printf("  %s\n", s.message().c_str());
 	assert_int_equal(s.code(), -ENOENT);
 	assert_non_null(std::strstr(s.message().c_str(), "not mounted"));
@@ -213,10 +213,10 @@ static void test_share_not_mounted(void **)
 	assert_int_equal(ls(share).size(), 0); // nothing on the local disk under the mount point
 	assert_int_equal(sp.pending(), 1);
 	std::ofstream(share + "/.facescan-share") << "";
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 1);
 	assert_int_equal(ls(share + "/P9").size(), 3);
-	assert_true(sp.deliver(&d, 0).ok()); // exactly once
+	assert_true(sp.deliver(&d).ok()); // exactly once
 	assert_int_equal(d.size(), 0);
 	assert_int_equal(ls(share + "/P9").size(), 3);
 	assert_int_equal(sp.pending(), 0);
@@ -237,8 +237,8 @@ static void test_fake_backend(void **)
 	assert_true(sp.init().ok());
 	const std::string a = "20260101T000010Z_aaaaaaaaaaaa", b = "20260101T000011Z_bbbbbbbbbbbb";
 	assert_int_equal(fscan_storage_fake_crash_next_queue(sp.handle(), 1), 0);
-	assert_int_equal(sp.put(a, "aaaaaaaaaaaa", "P10", files_of(a), 0).code(), -EINTR);
-	assert_true(sp.put(b, "bbbbbbbbbbbb", "P10", files_of(b), 0).ok());
+	assert_int_equal(sp.put(a, "aaaaaaaaaaaa", "P10", files_of(a)).code(), -EINTR);
+	assert_true(sp.put(b, "bbbbbbbbbbbb", "P10", files_of(b)).ok());
 	assert_false(sp.queued("aaaaaaaaaaaa"));
 	assert_true(sp.queued("bbbbbbbbbbbb"));
 	std::vector<std::string> failed;
@@ -247,10 +247,10 @@ static void test_fake_backend(void **)
 	assert_string_equal(failed[0].c_str(), "aaaaaaaaaaaa");
 	assert_int_equal(fscan_storage_fake_set_share_online(sp.handle(), false), 0);
 	std::vector<Delivered> d;
-	assert_int_equal(sp.deliver(&d, 0).code(), -ENOENT);
+	assert_int_equal(sp.deliver(&d).code(), -ENOENT);
 	assert_int_equal(sp.pending(), 1);
 	assert_int_equal(fscan_storage_fake_set_share_online(sp.handle(), true), 0);
-	assert_true(sp.deliver(&d, 0).ok());
+	assert_true(sp.deliver(&d).ok());
 	assert_int_equal(d.size(), 1);
 	assert_string_equal(d[0].patient_id.c_str(), "P10");
 	assert_string_equal(d[0].paths[2].c_str(), ("/nonexistent-share/P10/" + b + ".json").c_str());

@@ -4,13 +4,18 @@
 # Scans by socket request and by button press; faults: a bad config, the MCU unplugged
 # mid-scan, the share missing then back, a slow delivery (the loop keeps answering), kill -9
 # while spooling and while delivering.
+# The slow share and the slow spool are made from outside the daemon, which has no pause of its
+# own: strace attaches to the running facescand and delays its renames into a named place
+# (slow(), below; strace is in tools/install-deps.sh).
 set -u
 bin=${FACESCAN_BIN:?}
 fw=$bin/facescan-fw-native
 [ -x "$fw" ] || { echo "SKIP: $fw not built" >&2; exit 77; }
 T=$(mktemp -d /tmp/facescan-e2e-XXXXXX)
-FWPID= DPID=
+T=$(cd "$T" && pwd -P) # strace matches the paths the kernel reports for the daemon's fds
+FWPID= DPID= SPID=
 cleanup() {
+	[ -n "$SPID" ] && kill "$SPID" 2>/dev/null
 	[ -n "$DPID" ] && kill -9 "$DPID" 2>/dev/null
 	[ -n "$FWPID" ] && kill "$FWPID" 2>/dev/null
 	wait 2>/dev/null
@@ -50,7 +55,33 @@ start_daemon() { # extra config lines on stdin
 	for _ in $(seq 100); do fs status >/dev/null 2>&1 && return 0; sleep 0.1; done
 	return 1
 }
-stop_daemon() { kill "$DPID"; wait "$DPID"; DPID=; }
+stop_daemon() { unslow; kill "$DPID"; wait "$DPID"; DPID=; }
+# slow WHEN DELAY PLACE...: from now on every rename the running facescand makes into PLACE (a
+# directory: any file renamed into place there; a bare name: a file of that name in any directory)
+# is held DELAY (strace units: 1500ms) before (WHEN = delay_enter) or after (delay_exit) it
+# happens. Returns once every thread of the daemon is traced; threads it starts later are too.
+slow() {
+	when=$1 delay=$2
+	shift 2
+	command -v strace >/dev/null || { echo "strace is missing (tools/install-deps.sh)" >&2; return 1; }
+	paths=
+	for p; do paths="$paths -P $p"; done
+	# shellcheck disable=SC2086
+	strace -qq -f -p "$DPID" -o /dev/null $paths -e trace=renameat,renameat2 \
+		-e inject=renameat,renameat2:"$when=$delay" 2>>"$T/strace.err" &
+	SPID=$!
+	for _ in $(seq 50); do
+		traced=yes
+		for s in /proc/"$DPID"/task/*/status; do
+			grep -q "^TracerPid:[[:space:]]*$SPID\$" "$s" 2>/dev/null || traced=no
+		done
+		[ "$traced" = yes ] && return 0
+		sleep 0.1
+	done
+	return 1
+}
+# Detaches strace (the daemon runs on at full speed; LeakSanitizer cannot work under ptrace).
+unslow() { [ -n "$SPID" ] && { kill "$SPID" 2>/dev/null; wait "$SPID" 2>/dev/null; SPID=; }; return 0; }
 wait_state() { # state, tenths of a second
 	for _ in $(seq "$2"); do
 		[ "$(state_now)" = "$1" ] && return 0
@@ -138,11 +169,10 @@ stop_daemon
 # ---- a slow delivery never blocks the loop: status answers, a scan request is taken at once,
 # the delivery stops after the scan it delivers and the new scan's capture follows it ----
 ms_of() { s=$(date +%s%N); "$@" >/dev/null 2>&1; echo $(( ($(date +%s%N) - s) / 1000000 )); }
-start_daemon <<CONF
-test_delay_deliver_ms = 1000
-CONF
+start_daemon </dev/null
 mv "$T/share" "$T/share.away"
 fs scan --patient SLOW-1 --press >/dev/null
+check "strace slows the share (1 s after each file of SLOW-1)" slow delay_exit 1s "$T/share/SLOW-1"
 mv "$T/share.away" "$T/share"
 for _ in $(seq 50); do [ "$(visible_files SLOW-1)" -ge 1 ] && break; sleep 0.05; done
 check "a spooled scan is being delivered (slowly)" [ "$(visible_files SLOW-1)" -ge 1 ] && [ "$(visible_files SLOW-1)" -lt 5 ]
@@ -170,13 +200,17 @@ check "idle after the restart" wait_state idle 30
 stop_daemon
 
 # ---- kill -9 while spooling: nothing visible, reported failed on restart ----
-start_daemon <<CONF
-test_delay_write_ms = 1500
-CONF
+# The spool's commit point (its manifest, renamed into place after every file) is held 3 s: the
+# kill comes with the scan's files in the spool and the scan not yet committed.
+start_daemon </dev/null
+check "strace slows the spool's commit" slow delay_enter 3s manifest
 fs scan --patient KILL-1 --press --no-wait >/dev/null
 check "writing" wait_state writing 50
-sleep 0.3
+spooled_json() { ls "$T"/spool/queue/*/*.json >/dev/null 2>&1; }
+for _ in $(seq 30); do spooled_json && break; sleep 0.1; done
+check "the files are in the spool, the manifest is not" sh -c "ls '$T'/spool/queue/*/*.json >/dev/null 2>&1 && ! ls '$T'/spool/queue/*/manifest >/dev/null 2>&1"
 kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
+unslow
 check "no file of the killed scan on the share" [ "$(visible_files KILL-1)" -eq 0 ]
 start_daemon </dev/null
 check "killed scan reported failed after restart" sh -c "\"$bin/facescan\" last --json | grep -q 'interrupted while writing'"
@@ -185,13 +219,13 @@ check "spool cleared" [ -z "$(ls "$T/spool/queue")" ]
 stop_daemon
 
 # ---- kill -9 while delivering: recovered on restart, no partial or duplicate file ----
-start_daemon <<CONF
-test_delay_deliver_ms = 1500
-CONF
+start_daemon </dev/null
+check "strace slows the share (1.5 s after each file of KILL-2)" slow delay_exit 1500ms "$T/share/KILL-2"
 fs scan --patient KILL-2 --press --no-wait >/dev/null
 sleep 0.5
 for _ in $(seq 50); do [ "$(visible_files KILL-2)" -ge 1 ] && break; sleep 0.1; done
 kill -9 "$DPID"; wait "$DPID" 2>/dev/null; DPID=
+unslow
 n=$(visible_files KILL-2)
 check "mid-delivery: some but not all files (got $n)" [ "$n" -ge 1 ] && [ "$n" -lt 5 ]
 check "no metadata before the mesh is complete" [ -z "$(ls "$T"/share/KILL-2/*.json 2>/dev/null)" ]
@@ -206,9 +240,8 @@ check "a progress line per stage" sh -c "grep -c '\[[123]/3\]' '$T/daemon.log' |
 stop_daemon
 
 # ---- a second facescand on the same config is refused and touches nothing ----
-start_daemon <<CONF
-test_delay_write_ms = 1500
-CONF
+start_daemon </dev/null
+check "strace slows the spool's commit" slow delay_enter 1500ms manifest
 fs scan --patient LIVE-1 --press --no-wait >/dev/null
 check "writing before the second start" wait_state writing 50
 "$bin/facescand" --config "$T/facescand.conf" 2>"$T/second.err"; rc=$?

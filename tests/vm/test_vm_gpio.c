@@ -2,12 +2,15 @@
  * The contract test_gpio.c checks on the fake, on a real gpiochip: a press that bounces gives
  * exactly one debounced press (and a bouncing release one release); the LED and MCU-reset lines
  * the backend drives read back from the simulator's side with the configured polarity; a chip
- * removed while open gives a clear error, promptly. The simulator pulls the button line through
+ * removed while open gives a clear error, promptly; the fd facescand's loop watches instead of
+ * polling (fscan_gpio_fd, the line's kernel event fd) is quiet until an edge, readable at the
+ * edge, and fscan_gpio_timeout_ms() says when the held level settles. The simulator pulls the button line through
  * sysfs (sim_gpioN/pull), so the edges are real kernel edge events with kernel timestamps.
  * Outside the VM (no FACESCAN_VM=1) it skips. */
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <poll.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -194,6 +197,41 @@ static void test_tap_shorter_than_window_is_ignored(void **state)
 	assert_int_equal(ev.type, FSCAN_GPIO_BUTTON_RELEASED);
 }
 
+/* What GpioMcu relies on (tests/daemon/test_daemon.cpp checks the same on the fake): the fd is
+ * quiet with no edge, readable once the line moves, quiet again when the edge is read; the held
+ * level then settles within fscan_gpio_timeout_ms() without another wake-up. */
+static bool fd_readable(struct fscan_gpio *gpio, int timeout_ms)
+{
+	struct pollfd p = {.fd = fscan_gpio_fd(gpio), .events = POLLIN};
+	assert_true(p.fd >= 0);
+	return poll(&p, 1, timeout_ms) > 0;
+}
+
+static void test_fd_wakes_on_an_edge(void **state)
+{
+	struct fscan_gpio *gpio = *state;
+	struct fscan_gpio_event ev;
+	assert_false(fd_readable(gpio, 0));
+	assert_int_equal(fscan_gpio_timeout_ms(gpio), -1);
+	double t0 = now_s();
+	pull(BUTTON, false); /* press (active low) */
+	assert_true(fd_readable(gpio, 1000));
+	printf("fd readable %.2f ms after the pull\n", (now_s() - t0) * 1e3);
+	/* The edge is read; the level is not held long enough yet. */
+	assert_int_equal(fscan_gpio_read_event(gpio, 0, &ev), -ETIMEDOUT);
+	assert_false(fd_readable(gpio, 0));
+	int due = fscan_gpio_timeout_ms(gpio);
+	printf("settles in %d ms\n", due);
+	assert_true(due >= 0 && due <= DEBOUNCE_MS);
+	/* Nothing else wakes the loop: it sleeps the deadline, then the press is there. */
+	assert_false(fd_readable(gpio, due + 5));
+	assert_int_equal(fscan_gpio_read_event(gpio, 0, &ev), 0);
+	assert_int_equal(ev.type, FSCAN_GPIO_BUTTON_PRESSED);
+	assert_int_equal(fscan_gpio_timeout_ms(gpio), -1);
+	pull(BUTTON, true);
+	assert_true(fd_readable(gpio, 1000));
+}
+
 static void test_outputs_read_back_on_the_sim_side(void **state)
 {
 	struct fscan_gpio *gpio = *state;
@@ -255,6 +293,7 @@ int main(void)
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test_setup_teardown(test_bouncing_press_is_one_press, setup, teardown),
 		cmocka_unit_test_setup_teardown(test_tap_shorter_than_window_is_ignored, setup, teardown),
+		cmocka_unit_test_setup_teardown(test_fd_wakes_on_an_edge, setup, teardown),
 		cmocka_unit_test_setup_teardown(test_outputs_read_back_on_the_sim_side, setup, teardown),
 		cmocka_unit_test_setup_teardown(test_lines_in_use_are_busy, setup, teardown),
 		cmocka_unit_test_setup_teardown(test_chip_removed_while_open, setup, teardown),

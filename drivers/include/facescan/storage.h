@@ -75,9 +75,8 @@ struct fscan_storage_ops {
 	int (*share_free)(void *ctx, uint64_t *ret_bytes);
 	/* Scan entries (see fscan_storage_queue() and below). */
 	int (*queue)(void *ctx, const char *base, const char *scan_id, const char *dir,
-		     const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms);
-	int (*deliver_next)(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file, void *ud,
-			    unsigned pause_ms);
+		     const struct fscan_storage_file *files, size_t n_files);
+	int (*deliver_next)(void *ctx, struct fscan_storage_delivery *ret, fscan_storage_file_cb on_file, void *ud);
 	int (*recover)(void *ctx, fscan_storage_id_cb on_failed, void *ud);
 	int (*queued)(void *ctx, const char *scan_id);
 	int (*scans)(void *ctx);
@@ -116,10 +115,9 @@ int fscan_storage_share_free(struct fscan_storage *storage, uint64_t *ret_bytes)
  *
  * Queues `n_files` files under entry `base` (one path component, sorted oldest first) for the
  * share folder `dir` (one component). Queueing the same base again replaces the entry.
- * `pause_ms` pauses between files (fault tests). 0, -EINVAL bad names, -ENOSPC spool below
- * spool_min_free, -errno. */
+ * 0, -EINVAL bad names, -ENOSPC spool below spool_min_free, -errno. */
 int fscan_storage_queue(struct fscan_storage *storage, const char *base, const char *scan_id, const char *dir,
-			const struct fscan_storage_file *files, size_t n_files, unsigned pause_ms);
+			const struct fscan_storage_file *files, size_t n_files);
 /* Delivers the oldest complete entry to <share>/<dir>/<name>, each file atomically, files
  * ending in ".json" last (whoever sees the metadata sees the rest complete), then removes the
  * entry in one rename. on_file (may be NULL) gets each delivered relpath. Names are fixed per
@@ -129,7 +127,7 @@ int fscan_storage_queue(struct fscan_storage *storage, const char *base, const c
  * min_free_bytes after the whole entry, -EPROTO damaged manifest, -errno; on failure the entry
  * stays queued. */
 int fscan_storage_deliver_next(struct fscan_storage *storage, struct fscan_storage_delivery *ret,
-			       fscan_storage_file_cb on_file, void *ud, unsigned pause_ms);
+			       fscan_storage_file_cb on_file, void *ud);
 /* Removes entries without a manifest (interrupted while queued) and the leftovers of a crash
  * between delivery and removal. on_failed (may be NULL) gets each interrupted entry's scan id
  * (what follows the last '_' of its base). Returns how many were interrupted, or -errno. */
