@@ -92,6 +92,22 @@ struct DenseParams {
 	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
 	/// booth) stay. 0: off.
 	int unmatched_margin_px = 2;
+	/// Other views' check (other_view_consistency): matches within `view_check_border_px`
+	/// (matching resolution) of the matched region's border are projected, with the plane the
+	/// pair's disparity fits within `view_check_plane_px` around them, into the rig's other
+	/// cameras that see them; the pattern around them in the left view, warped by that plane,
+	/// must correlate (zero-mean, colour, a window of 2 `view_check_radius_px` + 1) with the
+	/// other view's to at least `view_check_min_ncc` in one of them, or they are dropped. A window
+	/// with less texture than `view_check_min_std` (grey levels), or no other view seeing the
+	/// point within `view_check_max_angle_deg` of its normal, gives no verdict: kept.
+	/// 0 border pixels: off.
+	int view_check_border_px = 0;
+	int view_check_plane_px = 3;
+	int view_check_radius_px = 8;
+	int view_check_stride_px = 2; // the window's samples, every this many pixels
+	double view_check_min_ncc = 0.7;
+	double view_check_min_std = 6;
+	double view_check_max_angle_deg = 75;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -125,6 +141,9 @@ struct DenseStats {
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
 	int near_unmatched = 0; // dropped: within unmatched_margin_px of a pixel SGBM refused
+	int view_checked = 0;	// near the border, judged by another camera's view
+	int view_dropped = 0;	// ... and dropped: no other view agrees
+	int near_confirmed = 0; // within unmatched_margin_px of a refused pixel, kept: another view agrees
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
@@ -196,10 +215,27 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
 
+/// Another camera of the rig than the pair's two: its 8-bit BGR pattern frame and model.
+struct OtherView {
+	cv::Mat frame;
+	CameraModel camera;
+};
+
+/// How well the rig's other views agree with the pair's disparity at each pixel of `check`
+/// (CV_8U, rectified matching pixels): CV_32F, the best zero-mean colour NCC over `others` of
+/// the window of `left` (the pair's rectified left view, BGR) around the pixel against that
+/// window's image in the other view, mapped through the plane the valid disparities (`disparity`
+/// CV_32F, `valid` CV_8U) fit around the pixel — so a slanted surface is compared as the other
+/// camera sees it. NaN where there is no verdict (no texture, no other view sees the point).
+cv::Mat other_view_consistency(const cv::Mat &left, const RectifiedPair &rp, const CameraModel &a,
+			       const cv::Mat &disparity, const cv::Mat &valid, const cv::Mat &check,
+			       const std::vector<OtherView> &others, const DenseParams &params);
+
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
-/// the seeds). Frames are the pair's 8-bit BGR pattern frames.
+/// the seeds). Frames are the pair's 8-bit BGR pattern frames; `others` the rig's other cameras
+/// (the other views' check; empty: none).
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  const PartialModel &model, const std::vector<OtherView> &others, const DenseParams &params, DenseCloud *ret_cloud,
 		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
 
 } // namespace facescan::recon

@@ -227,8 +227,12 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		cv::parallel_for_(cv::Range(0, int(n - 1)), [&](const cv::Range &r) {
 			for (int i = r.start; i < r.end; ++i) {
 				const size_t p = size_t(i);
+				std::vector<OtherView> others;
+				for (size_t c = 0; c < n; ++c)
+					if (c != p && c != p + 1)
+						others.push_back({set.frames[c], cams[c]});
 				pair_status[p] = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p],
-							    params.dense, &clouds[p], &report.pairs[p].dense,
+							    others, params.dense, &clouds[p], &report.pairs[p].dense,
 							    ret_debug ? &dbg[p] : nullptr);
 			}
 		});
@@ -340,6 +344,9 @@ std::string report_json(const ReconReport &r)
 				   {"unlit", p.dense.unlit},
 				   {"low_confidence", p.dense.low_confidence},
 				   {"near_unmatched", p.dense.near_unmatched},
+				   {"view_checked", p.dense.view_checked},
+				   {"view_dropped", p.dense.view_dropped},
+				   {"near_confirmed", p.dense.near_confirmed},
 				   {"flat_filled", p.dense.flat_filled},
 				   {"flat_kept", p.dense.flat_kept},
 				   {"flat_dropped", p.dense.flat_dropped},
