@@ -93,21 +93,27 @@ struct DenseParams {
 	/// booth) stay. 0: off.
 	int unmatched_margin_px = 2;
 	/// Other views' check (other_view_consistency): matches within `view_check_border_px`
-	/// (matching resolution) of the matched region's border are projected, with the plane the
-	/// pair's disparity fits within `view_check_plane_px` around them, into the rig's other
-	/// cameras that see them; the pattern around them in the left view, warped by that plane,
-	/// must correlate (zero-mean, colour, a window of 2 `view_check_radius_px` + 1) with the
-	/// other view's to at least `view_check_min_ncc` in one of them, or they are dropped. A window
-	/// with less texture than `view_check_min_std` (grey levels), or no other view seeing the
-	/// point within `view_check_max_angle_deg` of its normal, gives no verdict: kept.
-	/// 0 border pixels: off.
-	int view_check_border_px = 0;
+	/// (matching resolution) of the matched region's border — where the RMS tail is — are
+	/// projected, with the plane the pair's disparity fits within `view_check_plane_px` around
+	/// them, into the rig's other cameras; the pattern around them in the left view, mapped
+	/// through that plane (so a slanted surface is compared as the other camera sees it), must
+	/// correlate (zero-mean, colour, a window of 2 `view_check_radius_px` + 1 sampled every
+	/// `view_check_stride_px`) with the other view's to at least `view_check_min_ncc` in one of
+	/// them, or they are dropped. No verdict (kept) when the window has less texture than
+	/// `view_check_min_std` (grey levels) or no other camera sees the point: not within
+	/// `view_check_max_angle_deg` of its normal, or behind the code's sparse mesh by more than
+	/// `view_check_occlusion_mm`. With the check, the unsure matches within
+	/// `unmatched_margin_px` of a refused pixel stay when another view confirms them (they go
+	/// when none judges them). 0 border pixels: off.
+	int view_check_border_px = 4;
 	int view_check_plane_px = 3;
 	int view_check_radius_px = 8;
-	int view_check_stride_px = 2; // the window's samples, every this many pixels
-	double view_check_min_ncc = 0.7;
+	int view_check_stride_px = 2;
+	double view_check_min_ncc = 0.5;
 	double view_check_min_std = 6;
 	double view_check_max_angle_deg = 75;
+	double view_check_occlusion_mm = 3;
+	bool view_check_confirms_near = true;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -131,6 +137,8 @@ struct DenseCloud {
 	std::vector<cv::Point3f> points;
 	std::vector<float> confidence; // NCC of the matched windows, 0..1
 	std::vector<float> border_mm;  // distance to the border of the pair's matched region
+	/// The other views' check: best NCC of another camera's view (NaN: not checked, no verdict).
+	std::vector<float> view_ncc;
 };
 
 struct DenseStats {
@@ -215,10 +223,15 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
 
-/// Another camera of the rig than the pair's two: its 8-bit BGR pattern frame and model.
+/// Another camera of the rig than the pair's two: its 8-bit BGR pattern frame and model, and
+/// what hides parts of the face from it.
 struct OtherView {
 	cv::Mat frame;
 	CameraModel camera;
+	/// The code's sparse mesh as this camera sees it (render_depth at `depth_scale`; empty: no
+	/// occlusion test): a point behind it by more than view_check_occlusion_mm is hidden there.
+	cv::Mat depth;
+	double depth_scale = 0.25;
 };
 
 /// How well the rig's other views agree with the pair's disparity at each pixel of `check`
@@ -235,7 +248,7 @@ cv::Mat other_view_consistency(const cv::Mat &left, const RectifiedPair &rp, con
 /// the seeds). Frames are the pair's 8-bit BGR pattern frames; `others` the rig's other cameras
 /// (the other views' check; empty: none).
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		  const PartialModel &model, const std::vector<OtherView> &others, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
+		  const PartialModel &model, const std::vector<OtherView> &others, const DenseParams &params,
+		  DenseCloud *ret_cloud, DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
 
 } // namespace facescan::recon
