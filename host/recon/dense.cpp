@@ -2,7 +2,6 @@
 #include "recon/dense.hpp"
 
 #include "recon/meshing.hpp"
-#include "recon/raster.hpp"
 #include "recon/triangulate.hpp"
 
 #include <opencv2/calib3d.hpp>
@@ -633,166 +632,9 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 	return prior;
 }
 
-namespace {
-
-// Bilinear BGR sample of an 8-bit 3-channel image; false outside it.
-bool sample_bgr(const cv::Mat &img, double x, double y, float ret[3])
-{
-	if (!(x >= 0 && y >= 0 && x < img.cols - 1 && y < img.rows - 1))
-		return false;
-	const int x0 = int(x), y0 = int(y);
-	const float fx = float(x - x0), fy = float(y - y0);
-	const cv::Vec3b *r0 = img.ptr<cv::Vec3b>(y0) + x0, *r1 = img.ptr<cv::Vec3b>(y0 + 1) + x0;
-	for (int c = 0; c < 3; ++c) {
-		const float top = r0[0][c] + fx * (r0[1][c] - r0[0][c]);
-		const float bottom = r1[0][c] + fx * (r1[1][c] - r1[0][c]);
-		ret[c] = top + fy * (bottom - top);
-	}
-	return true;
-}
-
-} // namespace
-
-cv::Mat other_view_consistency(const cv::Mat &left, const RectifiedPair &rp, const CameraModel &a,
-			       const cv::Mat &disparity, const cv::Mat &valid, const cv::Mat &check,
-			       const std::vector<OtherView> &others, const DenseParams &params)
-{
-	const float nan = std::numeric_limits<float>::quiet_NaN();
-	cv::Mat score(rp.size, CV_32F, cv::Scalar(nan));
-	if (others.empty() || left.type() != CV_8UC3 || left.size() != rp.size)
-		return score;
-	std::vector<cv::Point> pixels;
-	cv::findNonZero(check & valid, pixels);
-	if (pixels.empty())
-		return score;
-	// The whole window is compared, the plane carried past the matched region's border: a point
-	// on the border has half its window outside, and comparing only the matched half left most
-	// border points without a verdict (random booth 111: 35 % of them judged in pair 0-1, 74 %
-	// in pair 1-2, against 42 % and 99 %), and the worst ones among them.
-	// Per pixel: the plane d = d0 + gx u + gy v the valid disparities fit around it, and three
-	// world points on it (the pixel, one step right, one step down) whose images in another view
-	// give the plane's local affine map into it (the homography over a small window).
-	const int pr = std::max(1, params.view_check_plane_px);
-	const double step = 2.0;
-	std::vector<cv::Point3d> world;
-	world.reserve(pixels.size() * 3);
-	for (const cv::Point &q : pixels) {
-		Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
-		Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
-		for (int v = -pr; v <= pr; ++v) {
-			const int y = q.y + v;
-			if (y < 0 || y >= rp.size.height)
-				continue;
-			const uchar *vr = valid.ptr<uchar>(y);
-			const float *dr = disparity.ptr<float>(y);
-			for (int u = -pr; u <= pr; ++u) {
-				const int x = q.x + u;
-				if (x < 0 || x >= rp.size.width || !vr[x])
-					continue;
-				const Eigen::Vector3d g(1, u, v);
-				A.noalias() += g * g.transpose();
-				rhs += g * double(dr[x]);
-			}
-		}
-		Eigen::Vector3d c(double(disparity.at<float>(q)), 0, 0);
-		if (A(0, 0) >= 6 && std::fabs(A.determinant()) > 1e-6)
-			c = A.ldlt().solve(rhs);
-		world.push_back(rectified_to_world(rp, a, q.x, q.y, c[0]));
-		world.push_back(rectified_to_world(rp, a, q.x + step, q.y, c[0] + step * c[1]));
-		world.push_back(rectified_to_world(rp, a, q.x, q.y + step, c[0] + step * c[2]));
-	}
-	const cv::Vec3d centre_a = a.centre();
-	const double min_cos = std::cos(params.view_check_max_angle_deg * CV_PI / 180);
-	const int stride = std::max(1, params.view_check_stride_px);
-	const int r = std::max(1, params.view_check_radius_px) / stride * stride;
-	const int side = 2 * (r / stride) + 1;
-	const int min_samples = side * side * 2 / 5;
-	const double min_var = params.view_check_min_std * params.view_check_min_std;
-	std::vector<float> best(pixels.size(), nan);
-	for (const OtherView &o : others) {
-		if (o.frame.type() != CV_8UC3)
-			continue;
-		const std::vector<cv::Point2d> img = project_points(o.camera, world);
-		std::vector<char> seen;
-		if (!o.depth.empty()) {
-			// A pixel on the face another part of it (the nose, a cheek) hides from this camera
-			// shows that part there: no verdict.
-			std::vector<cv::Point3d> centres(pixels.size());
-			std::vector<cv::Point2d> centre_px(pixels.size());
-			for (size_t i = 0; i < pixels.size(); ++i) {
-				centres[i] = world[3 * i];
-				centre_px[i] = img[3 * i];
-			}
-			seen = visible_in(o.camera, o.depth, o.depth_scale, centres, params.view_check_occlusion_mm,
-					  &centre_px);
-		}
-		const cv::Vec3d centre_o = o.camera.centre();
-		for (size_t i = 0; i < pixels.size(); ++i) {
-			if (!seen.empty() && !seen[i])
-				continue;
-			const cv::Vec3d p0(world[3 * i]), p1(world[3 * i + 1]), p2(world[3 * i + 2]);
-			cv::Vec3d n = (p1 - p0).cross(p2 - p0);
-			const double nn = cv::norm(n);
-			if (!(nn > 0))
-				continue;
-			n *= 1.0 / nn;
-			const cv::Vec3d to_a = centre_a - p0, to_o = centre_o - p0;
-			const double ca = n.dot(to_a) / cv::norm(to_a), co = n.dot(to_o) / cv::norm(to_o);
-			// The other camera must see the same side of the plane, not too obliquely.
-			if (ca * co <= 0 || std::fabs(co) < min_cos || (o.camera.R * p0 + o.camera.T)[2] <= 0)
-				continue;
-			const cv::Point2d c0 = img[3 * i], ju = (img[3 * i + 1] - c0) / step, jv = (img[3 * i + 2] - c0) / step;
-			double sl[3] = {0, 0, 0}, so[3] = {0, 0, 0}, sll[3] = {0, 0, 0}, soo[3] = {0, 0, 0}, slo[3] = {0, 0, 0};
-			int n_samples = 0;
-			const cv::Point q = pixels[i];
-			for (int v = -r; v <= r; v += stride) {
-				const int y = q.y + v;
-				if (y < 0 || y >= rp.size.height)
-					continue;
-				const cv::Vec3b *lr = left.ptr<cv::Vec3b>(y);
-				for (int u = -r; u <= r; u += stride) {
-					const int x = q.x + u;
-					if (x < 0 || x >= rp.size.width)
-						continue;
-					const cv::Point2d po = c0 + ju * double(u) + jv * double(v);
-					float s[3];
-					if (!sample_bgr(o.frame, po.x, po.y, s))
-						continue;
-					for (int ch = 0; ch < 3; ++ch) {
-						const double l = lr[x][ch], m = s[ch];
-						sl[ch] += l;
-						so[ch] += m;
-						sll[ch] += l * l;
-						soo[ch] += m * m;
-						slo[ch] += l * m;
-					}
-					n_samples++;
-				}
-			}
-			if (n_samples < min_samples)
-				continue;
-			double var_l = 0, var_o = 0, cov = 0;
-			for (int ch = 0; ch < 3; ++ch) {
-				var_l += sll[ch] - sl[ch] * sl[ch] / n_samples;
-				var_o += soo[ch] - so[ch] * so[ch] / n_samples;
-				cov += slo[ch] - sl[ch] * so[ch] / n_samples;
-			}
-			// Too little pattern in the window (a square's interior) says nothing either way.
-			if (var_l < 3 * min_var * n_samples || var_o <= 0)
-				continue;
-			const float z = float(cov / std::sqrt(var_l * var_o));
-			if (!(best[i] >= z))
-				best[i] = z;
-		}
-	}
-	for (size_t i = 0; i < pixels.size(); ++i)
-		score.at<float>(pixels[i]) = best[i];
-	return score;
-}
-
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		  const PartialModel &model, const std::vector<OtherView> &others, const DenseParams &params,
-		  DenseCloud *ret_cloud, DenseStats *ret_stats, DensePairDebug *ret_debug)
+		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug)
 {
 	DenseStats stats;
 	DenseCloud cloud;
@@ -945,18 +787,14 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		}
 	}
 	// Next to a pixel SGBM refused (its left-right, uniqueness or speckle check) the match is
-	// unsure; next to one merely dark or unlit it is not. With the other views' check such a
-	// match stays only when another view confirms it (below); without it, it goes here.
-	const bool view_check = params.view_check_border_px > 0 && !others.empty();
-	cv::Mat near;
+	// unsure; next to one merely dark or unlit it is not.
 	if (params.unmatched_margin_px > 0) {
 		const int m = 2 * params.unmatched_margin_px + 1;
+		cv::Mat near;
 		cv::dilate(fail, near, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(m, m)));
 		near &= valid;
-		if (!view_check || !params.view_check_confirms_near) {
-			stats.near_unmatched = cv::countNonZero(near);
-			valid.setTo(0, near);
-		}
+		stats.near_unmatched = cv::countNonZero(near);
+		valid.setTo(0, near);
 	}
 	if (params.refine_iterations > 0)
 		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
@@ -1004,39 +842,6 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		stats.steep += cv::countNonZero(steep);
 		valid.setTo(0, bad);
 	}
-	// Near the matched region's border the pair's own checks cannot tell a right match from one
-	// a few pixels off (the RMS tail): another camera's view of the pattern there can.
-	cv::Mat view_score;
-	if (view_check) {
-		cv::Mat dist, check;
-		cv::distanceTransform(valid, dist, cv::DIST_L2, 3);
-		cv::compare(dist, float(params.view_check_border_px) + 0.5f, check, cv::CMP_LE);
-		if (!near.empty() && params.view_check_confirms_near)
-			check |= near;
-		check &= valid;
-		const cv::Mat score = other_view_consistency(left, rp, a, total, valid, check, others, params);
-		view_score = score;
-		for (int y = 0; y < rp.size.height; ++y) {
-			const float *sr = score.ptr<float>(y);
-			const uchar *nr = near.empty() || !params.view_check_confirms_near ? nullptr : near.ptr<uchar>(y);
-			uchar *vr = valid.ptr<uchar>(y);
-			for (int x = 0; x < rp.size.width; ++x) {
-				if (!vr[x])
-					continue;
-				const bool judged = sr[x] == sr[x];
-				stats.view_checked += judged;
-				if (judged && sr[x] < float(params.view_check_min_ncc)) {
-					vr[x] = 0;
-					stats.view_dropped++;
-				} else if (nr && nr[x] && !judged) {
-					vr[x] = 0; // unsure and unconfirmed
-					stats.near_unmatched++;
-				} else if (nr && nr[x]) {
-					stats.near_confirmed++;
-				}
-			}
-		}
-	}
 	// Islands are mismatches (a lit speck of hair, the rim of a shadow): only regions of at least
 	// `min_region_px` pixels stay.
 	{
@@ -1072,7 +877,6 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			const double z = rp.f * rp.baseline / den;
 			cloud.points.emplace_back(w);
 			cloud.confidence.push_back(sr[x] > 4 ? std::clamp(nr[x], 0.f, 1.f) : float(params.flat_confidence));
-			cloud.view_ncc.push_back(view_score.empty() ? std::numeric_limits<float>::quiet_NaN() : view_score.at<float>(y, x));
 			cloud.border_mm.push_back(float(br[x] * z / rp.f));
 		}
 	}

@@ -92,28 +92,6 @@ struct DenseParams {
 	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
 	/// booth) stay. 0: off.
 	int unmatched_margin_px = 2;
-	/// Other views' check (other_view_consistency): matches within `view_check_border_px`
-	/// (matching resolution) of the matched region's border — where the RMS tail is — are
-	/// projected, with the plane the pair's disparity fits within `view_check_plane_px` around
-	/// them, into the rig's other cameras; the pattern around them in the left view, mapped
-	/// through that plane (so a slanted surface is compared as the other camera sees it), must
-	/// correlate (zero-mean, colour, a window of 2 `view_check_radius_px` + 1 sampled every
-	/// `view_check_stride_px`) with the other view's to at least `view_check_min_ncc` in one of
-	/// them, or they are dropped. No verdict (kept) when the window has less texture than
-	/// `view_check_min_std` (grey levels) or no other camera sees the point: not within
-	/// `view_check_max_angle_deg` of its normal, or behind the code's sparse mesh by more than
-	/// `view_check_occlusion_mm`. With the check, the unsure matches within
-	/// `unmatched_margin_px` of a refused pixel stay when another view confirms them (they go
-	/// when none judges them). 0 border pixels: off.
-	int view_check_border_px = 4;
-	int view_check_plane_px = 3;
-	int view_check_radius_px = 8;
-	int view_check_stride_px = 2;
-	double view_check_min_ncc = 0.5;
-	double view_check_min_std = 6;
-	double view_check_max_angle_deg = 75;
-	double view_check_occlusion_mm = 3;
-	bool view_check_confirms_near = true;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
@@ -137,8 +115,6 @@ struct DenseCloud {
 	std::vector<cv::Point3f> points;
 	std::vector<float> confidence; // NCC of the matched windows, 0..1
 	std::vector<float> border_mm;  // distance to the border of the pair's matched region
-	/// The other views' check: best NCC of another camera's view (NaN: not checked, no verdict).
-	std::vector<float> view_ncc;
 };
 
 struct DenseStats {
@@ -149,9 +125,6 @@ struct DenseStats {
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
 	int near_unmatched = 0; // dropped: within unmatched_margin_px of a pixel SGBM refused
-	int view_checked = 0;	// near the border, judged by another camera's view
-	int view_dropped = 0;	// ... and dropped: no other view agrees
-	int near_confirmed = 0; // within unmatched_margin_px of a refused pixel, kept: another view agrees
 	int islands = 0;	// dropped as part of a small matched region
 	int at_search_edge = 0; // dropped: matched at the end of the residual range
 	int steep = 0, rim = 0; // dropped: steep disparity, the matched region's rim
@@ -223,32 +196,10 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
 
-/// Another camera of the rig than the pair's two: its 8-bit BGR pattern frame and model, and
-/// what hides parts of the face from it.
-struct OtherView {
-	cv::Mat frame;
-	CameraModel camera;
-	/// The code's sparse mesh as this camera sees it (render_depth at `depth_scale`; empty: no
-	/// occlusion test): a point behind it by more than view_check_occlusion_mm is hidden there.
-	cv::Mat depth;
-	double depth_scale = 0.25;
-};
-
-/// How well the rig's other views agree with the pair's disparity at each pixel of `check`
-/// (CV_8U, rectified matching pixels): CV_32F, the best zero-mean colour NCC over `others` of
-/// the window of `left` (the pair's rectified left view, BGR) around the pixel against that
-/// window's image in the other view, mapped through the plane the valid disparities (`disparity`
-/// CV_32F, `valid` CV_8U) fit around the pixel — so a slanted surface is compared as the other
-/// camera sees it. NaN where there is no verdict (no texture, no other view sees the point).
-cv::Mat other_view_consistency(const cv::Mat &left, const RectifiedPair &rp, const CameraModel &a,
-			       const cv::Mat &disparity, const cv::Mat &valid, const cv::Mat &check,
-			       const std::vector<OtherView> &others, const DenseParams &params);
-
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
-/// the seeds). Frames are the pair's 8-bit BGR pattern frames; `others` the rig's other cameras
-/// (the other views' check; empty: none).
+/// the seeds). Frames are the pair's 8-bit BGR pattern frames.
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		  const PartialModel &model, const std::vector<OtherView> &others, const DenseParams &params,
-		  DenseCloud *ret_cloud, DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
+		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
 
 } // namespace facescan::recon

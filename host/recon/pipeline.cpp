@@ -1,8 +1,6 @@
 // The reconstruction pipeline. See pipeline.hpp.
 #include "recon/pipeline.hpp"
 
-#include "recon/raster.hpp"
-
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -223,23 +221,14 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		std::vector<DenseCloud> clouds(n - 1);
 		std::vector<DensePairDebug> dbg(n - 1);
 		std::vector<Status> pair_status(n - 1);
-		// What the code's sparse mesh hides from each camera, for the other views' check.
-		std::vector<cv::Mat> sparse_depth(n);
-		if (!mesh.triangles.empty())
-			for (size_t c = 0; c < n; ++c)
-				sparse_depth[c] = render_depth(cams[c], mesh.positions, mesh.triangles, 0.25);
 		// The pairs are independent, and much of a pair's time is single-threaded (the prior,
 		// the refinement, the flat refill, the filters): they run concurrently so that no core
 		// idles while one pair is in such a part.
 		cv::parallel_for_(cv::Range(0, int(n - 1)), [&](const cv::Range &r) {
 			for (int i = r.start; i < r.end; ++i) {
 				const size_t p = size_t(i);
-				std::vector<OtherView> others;
-				for (size_t c = 0; c < n; ++c)
-					if (c != p && c != p + 1)
-						others.push_back({set.frames[c], cams[c], sparse_depth[c], 0.25});
 				pair_status[p] = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p],
-							    others, params.dense, &clouds[p], &report.pairs[p].dense,
+							    params.dense, &clouds[p], &report.pairs[p].dense,
 							    ret_debug ? &dbg[p] : nullptr);
 			}
 		});
@@ -351,9 +340,6 @@ std::string report_json(const ReconReport &r)
 				   {"unlit", p.dense.unlit},
 				   {"low_confidence", p.dense.low_confidence},
 				   {"near_unmatched", p.dense.near_unmatched},
-				   {"view_checked", p.dense.view_checked},
-				   {"view_dropped", p.dense.view_dropped},
-				   {"near_confirmed", p.dense.near_confirmed},
 				   {"flat_filled", p.dense.flat_filled},
 				   {"flat_kept", p.dense.flat_kept},
 				   {"flat_dropped", p.dense.flat_dropped},
