@@ -31,6 +31,18 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 	st = classify_letters(bgr, blobs, pattern, hue, &out.squares);
 	if (!st.ok())
 		return st;
+	// Superposed copies: the letters' own planes, measured on the squares read so far. A view
+	// with too few squares of some letter to measure its colour keeps the intensity stage's.
+	std::vector<cv::Vec3d> colours;
+	if (params.planes.enabled && pattern.matrix.letters() == 3 &&
+	    letter_colours(bgr, blobs, out.squares, 3, params.gamma, params.planes.min_squares_per_letter, &colours).ok()) {
+		std::vector<cv::Mat> planes;
+		if (letter_planes(bgr, params.gamma, colours, params.planes.min_share, &planes).ok()) {
+			st = add_letter_squares(planes, params.squares, params.corners, params.planes, &out.squares, &blobs);
+			if (!st.ok())
+				return st;
+		}
+	}
 	link_grid(pattern.slide.gap_fraction, params.grid, &out.squares);
 	decode_cells(pattern, params.decode, &out);
 	check_grid_shapes(params.grid, &out.squares);

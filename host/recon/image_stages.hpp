@@ -131,6 +131,47 @@ struct HueParams {
 Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
 			const Pattern &pattern, const HueParams &params, std::vector<Square> *squares);
 
+// ---- stage 1d: letter planes (superposed slide copies) ---------------------------------------
+
+/// Two projectors of about the same pitch and roll that light the same part of the face (random
+/// booths, overlapping mode) superpose two copies of the slide offset by a fraction of a cell: the
+/// squares of a row run together into strips, which the intensity stage refuses, and a camera can
+/// decode nothing. Light adds, and the three letter colours are independent in RGB, so each pixel
+/// splits into the light of each letter: in one letter's plane the other copy's squares of other
+/// letters vanish and most squares stand alone again.
+struct LetterPlaneParams {
+	bool enabled = true;
+	/// Squares of each letter (from the intensity stage) needed to measure its colour in this view.
+	int min_squares_per_letter = 4;
+	/// A plane keeps a pixel only where its letter's light is at least this share of the
+	/// strongest letter's there (what a colour error leaks into the other planes stays out).
+	double min_share = 0.3;
+	/// A plane's square is the same as an intensity square when each holds the other's centre
+	/// and their areas differ by less than this factor; it is then not added.
+	double same_area_ratio = 1.6;
+};
+
+/// The linear colour (B, G, R, inside minus gap, unit sum) of each letter in this view: the mean
+/// over the squares classify_letters gave that letter. -ENODATA when a letter has fewer than
+/// `min_squares` squares, -EINVAL on bad input.
+Status letter_colours(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
+		      const std::vector<Square> &squares, int letters, double gamma, int min_squares,
+		      std::vector<cv::Vec3d> *ret_colours);
+
+/// Splits the frame's linear light into one CV_32F plane per letter by inverting the 3 × 3 mixing
+/// matrix of the letters' colours (exactly 3 letters; -EINVAL otherwise or when the colours are
+/// not independent). A plane is 0 where its share of the light is below `min_share`.
+Status letter_planes(const cv::Mat &bgr, double gamma, const std::vector<cv::Vec3d> &colours,
+		     double min_share, std::vector<cv::Mat> *ret_planes);
+
+/// Finds squares in each letter plane (find_squares, detect_corners on the plane, letter = the
+/// plane's) and merges them into `squares`/`blobs`: a plane square that is an intensity square
+/// already is skipped; an intensity square that holds a new plane square's centre was a blend of
+/// two copies and is dropped. Confidence = 1 − (strongest other plane / own plane) inside it.
+Status add_letter_squares(const std::vector<cv::Mat> &planes, const SquareParams &squares_params,
+			  const CornerParams &corner_params, const LetterPlaneParams &params,
+			  std::vector<Square> *squares, std::vector<SquareBlob> *blobs);
+
 // ---- stage 2: grid topology ------------------------------------------------------------------
 
 struct GridParams {
@@ -190,6 +231,7 @@ struct DetectParams {
 	SquareParams squares;
 	CornerParams corners;
 	HueParams hue;
+	LetterPlaneParams planes;
 	GridParams grid;
 	DecodeParams decode;
 };

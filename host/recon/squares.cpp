@@ -280,4 +280,73 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 	return {};
 }
 
+Status add_letter_squares(const std::vector<cv::Mat> &planes, const SquareParams &squares_params,
+			  const CornerParams &corner_params, const LetterPlaneParams &params,
+			  std::vector<Square> *squares, std::vector<SquareBlob> *blobs)
+{
+	if (squares->size() != blobs->size())
+		return Status::error(EINVAL, "add_letter_squares: one blob per square expected");
+	for (const cv::Mat &p : planes)
+		if (p.empty() || p.type() != CV_32F || p.size() != planes[0].size())
+			return Status::error(EINVAL, "add_letter_squares needs CV_32F planes of one size");
+	const size_t n_before = squares->size();
+	std::vector<char> blended(n_before, 0);
+	std::vector<Square> add_sq;
+	std::vector<SquareBlob> add_blob;
+	std::vector<cv::Mat> smooth(planes.size());
+	for (size_t l = 0; l < planes.size(); l++)
+		cv::GaussianBlur(planes[l], smooth[l], cv::Size(5, 5), 1.0, 1.0, cv::BORDER_REPLICATE);
+	for (size_t l = 0; l < planes.size(); l++) {
+		std::vector<Square> sq;
+		std::vector<SquareBlob> bl;
+		Status st = find_squares(smooth[l], squares_params, &sq, &bl);
+		if (!st.ok())
+			return st;
+		detect_corners(smooth[l], bl, corner_params, &sq);
+		for (size_t k = 0; k < sq.size(); k++) {
+			const SquareBlob &b = bl[k];
+			const cv::Point c(int(sq[k].centroid.x), int(sq[k].centroid.y));
+			bool same = false;
+			for (size_t j = 0; j < n_before && !same; j++) {
+				const Square &o = (*squares)[j];
+				const double ratio = std::max(o.area, sq[k].area) / std::max(1.0, std::min(o.area, sq[k].area));
+				same = ratio < params.same_area_ratio && (*blobs)[j].box.contains(c) &&
+				       b.box.contains(cv::Point(int(o.centroid.x), int(o.centroid.y)));
+			}
+			if (same)
+				continue;
+			for (size_t j = 0; j < n_before; j++) {
+				const SquareBlob &o = (*blobs)[j];
+				if (o.box.contains(c) && o.mask.at<uchar>(c - o.box.tl()))
+					blended[j] = 1;
+			}
+			// How clearly the square is this letter's: its own light against the strongest
+			// other letter's inside it (the other copy's squares overlap part of it).
+			const double own = cv::mean(smooth[l](b.box), b.mask)[0];
+			double other = 0;
+			for (size_t m = 0; m < planes.size(); m++)
+				if (m != l)
+					other = std::max(other, cv::mean(smooth[m](b.box), b.mask)[0]);
+			sq[k].letter = int(l);
+			sq[k].confidence = float(own > 0 ? std::clamp(1 - other / own, 0.0, 1.0) : 0.0);
+			add_sq.push_back(sq[k]);
+			add_blob.push_back(b);
+		}
+	}
+	std::vector<Square> out_sq;
+	std::vector<SquareBlob> out_blob;
+	for (size_t j = 0; j < n_before; j++)
+		if (!blended[j]) {
+			out_sq.push_back((*squares)[j]);
+			out_blob.push_back(std::move((*blobs)[j]));
+		}
+	for (size_t k = 0; k < add_sq.size(); k++) {
+		out_sq.push_back(add_sq[k]);
+		out_blob.push_back(std::move(add_blob[k]));
+	}
+	*squares = std::move(out_sq);
+	*blobs = std::move(out_blob);
+	return {};
+}
+
 } // namespace facescan::recon
