@@ -77,12 +77,8 @@ void link_grid(double gap_fraction, const GridParams &params, std::vector<Square
 						continue;
 					for (int d = 0; d < 4; d++) {
 						double cosang = (u * kDx[d] + v * kDy[d]) / dist;
-						// The candidate nearest one pitch away wins, not the nearest: where two
-						// projectors' copies superpose, the other copy's square often lies
-						// closer, a fraction of a pitch off.
-						const double miss = std::hypot(u - kDx[d], v - kDy[d]);
-						if (cosang >= cos_limit && miss < best[size_t(d)]) {
-							best[size_t(d)] = miss;
+						if (cosang >= cos_limit && dist < best[size_t(d)]) {
+							best[size_t(d)] = dist;
 							found[i][size_t(d)] = j;
 						}
 					}
