@@ -3,6 +3,9 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <cmath>
+
 namespace facescan::recon {
 
 Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectParams &params,
@@ -31,8 +34,46 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 	st = classify_letters(bgr, blobs, pattern, hue, &out.squares);
 	if (!st.ok())
 		return st;
+	// decode_cells rewrites neighbours and corners into the slide's sense: keep the image's.
+	const std::vector<Square> read = out.squares;
 	link_grid(pattern.slide.gap_fraction, params.grid, &out.squares);
 	decode_cells(pattern, params.decode, &out);
+	// Superposed copies: a view that decodes few of its squares gets the letters' own planes,
+	// their colours measured on the squares read so far (a view with too few squares of some
+	// letter keeps the intensity stage's). Only such views: each plane costs as much as the
+	// intensity stage. The planes cover the squares' bounding box (the face), widened by two sides.
+	std::vector<cv::Vec3d> colours;
+	if (params.planes.enabled && pattern.matrix.letters() == 3 && !blobs.empty() &&
+	    out.decoded < params.planes.max_decoded_share * out.detected &&
+	    letter_colours(bgr, blobs, read, 3, params.gamma, params.planes.min_squares_per_letter, &colours).ok()) {
+		cv::Rect face = blobs[0].box;
+		std::vector<double> areas;
+		for (size_t k = 0; k < blobs.size(); k++) {
+			face |= blobs[k].box;
+			areas.push_back(read[k].area);
+		}
+		std::nth_element(areas.begin(), areas.begin() + std::ptrdiff_t(areas.size() / 2), areas.end());
+		const int pad = int(2 * std::sqrt(areas[areas.size() / 2]));
+		face = cv::Rect(face.x - pad, face.y - pad, face.width + 2 * pad, face.height + 2 * pad) &
+		       cv::Rect(0, 0, bgr.cols, bgr.rows);
+		// find_squares derives its first window from the image's size: the frame's, not the crop's.
+		SquareParams plane_squares = params.squares;
+		if (plane_squares.first_window_px <= 0)
+			plane_squares.first_window_px = std::max(15, std::min(bgr.cols, bgr.rows) / 20);
+		std::vector<cv::Mat> planes;
+		if (letter_planes(bgr(face), params.gamma, colours, params.planes.min_share, &planes).ok()) {
+			CameraDetections again;
+			again.camera = out.camera;
+			again.squares = read;
+			st = add_letter_squares(planes, face.tl(), plane_squares, params.corners, params.planes,
+						&again.squares, &blobs);
+			if (!st.ok())
+				return st;
+			link_grid(pattern.slide.gap_fraction, params.grid, &again.squares);
+			decode_cells(pattern, params.decode, &again);
+			out = std::move(again);
+		}
+	}
 	check_grid_shapes(params.grid, &out.squares);
 	*ret = std::move(out);
 	return {};

@@ -72,4 +72,48 @@ Status bgr_to_intensity(const cv::Mat &bgr, cv::Mat *ret_intensity, double gamma
 	return {};
 }
 
+Status letter_planes(const cv::Mat &bgr, double gamma, const std::vector<cv::Vec3d> &colours,
+		     double min_share, std::vector<cv::Mat> *ret_planes)
+{
+	if (bgr.empty() || bgr.type() != CV_8UC3)
+		return Status::error(EINVAL, "letter planes need an 8-bit 3-channel image");
+	if (!(gamma > 0))
+		return Status::error(EINVAL, "letter planes: gamma must be positive");
+	if (colours.size() != 3)
+		return Status::error(EINVAL, "letter planes: exactly 3 letter colours are unmixed");
+	// Columns: the letters' colours; a pixel's light = mix · (light of each letter).
+	cv::Matx33d mix;
+	for (int l = 0; l < 3; l++)
+		for (int c = 0; c < 3; c++)
+			mix(c, l) = colours[size_t(l)][c];
+	if (std::abs(cv::determinant(mix)) < 1e-4)
+		return Status::error(EINVAL, "letter planes: the letter colours are not independent");
+	const cv::Matx33d unmix = mix.inv();
+	const std::array<float, 256> lin = linear_table(gamma);
+	// unmix · linear colour as three table look-ups per plane.
+	std::array<std::array<std::array<float, 256>, 3>, 3> term;
+	for (size_t l = 0; l < 3; l++)
+		for (size_t c = 0; c < 3; c++)
+			for (size_t v = 0; v < 256; v++)
+				term[l][c][v] = float(unmix(int(l), int(c)) * lin[v]);
+	const float share = float(min_share);
+	std::vector<cv::Mat> planes(3);
+	for (cv::Mat &p : planes)
+		p.create(bgr.size(), CV_32F);
+	for (int y = 0; y < bgr.rows; y++) {
+		const uchar *p = bgr.ptr<uchar>(y);
+		float *o[3] = {planes[0].ptr<float>(y), planes[1].ptr<float>(y), planes[2].ptr<float>(y)};
+		for (int x = 0; x < bgr.cols; x++, p += 3) {
+			float v[3];
+			for (size_t l = 0; l < 3; l++)
+				v[l] = term[l][0][p[0]] + term[l][1][p[1]] + term[l][2][p[2]];
+			const float top = std::max({v[0], v[1], v[2]});
+			for (int l = 0; l < 3; l++)
+				o[l][x] = v[l] > 0 && v[l] >= share * top ? v[l] : 0.0f;
+		}
+	}
+	*ret_planes = std::move(planes);
+	return {};
+}
+
 } // namespace facescan::recon

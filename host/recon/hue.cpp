@@ -208,4 +208,35 @@ Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs
 	return {};
 }
 
+Status letter_colours(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
+		      const std::vector<Square> &squares, int letters, double gamma, int min_squares,
+		      std::vector<cv::Vec3d> *ret_colours)
+{
+	if (bgr.empty() || bgr.type() != CV_8UC3)
+		return Status::error(EINVAL, "letter_colours needs an 8-bit BGR image");
+	if (blobs.size() != squares.size() || letters < 1 || !(gamma > 0))
+		return Status::error(EINVAL, "letter_colours: one blob per square, letters and gamma > 0");
+	const std::array<float, 256> lin = linear_table(gamma);
+	std::vector<cv::Vec3d> sum(size_t(letters), cv::Vec3d(0, 0, 0));
+	std::vector<int> count(size_t(letters), 0);
+	for (size_t i = 0; i < squares.size(); i++) {
+		const int l = squares[i].letter;
+		if (l < 0 || l >= letters)
+			continue;
+		const SquareColour c = square_colour(bgr, blobs[i], lin);
+		if (!c.ok)
+			continue;
+		// Unit sum: a bright square weighs as much as a dim one.
+		sum[size_t(l)] += c.mean * (1.0 / (c.mean[0] + c.mean[1] + c.mean[2]));
+		count[size_t(l)]++;
+	}
+	for (int l = 0; l < letters; l++) {
+		if (count[size_t(l)] < std::max(1, min_squares))
+			return Status::error(ENODATA, "letter_colours: too few squares of letter " + std::to_string(l));
+		sum[size_t(l)] *= 1.0 / count[size_t(l)];
+	}
+	*ret_colours = std::move(sum);
+	return {};
+}
+
 } // namespace facescan::recon

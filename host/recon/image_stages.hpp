@@ -67,11 +67,19 @@ struct SquareBlob {
 	double outside = 0;	// median intensity of the gap around it
 };
 
+/// How much of what the threshold lit became squares: pixels above the final local-mean threshold,
+/// and the kept squares' pixels.
+struct SquareCoverage {
+	double lit_px = 0, square_px = 0;
+};
+
 /// Finds the pattern's squares on the intensity plane: local-mean threshold, blob filtering,
 /// then a per-square threshold at the midpoint of its own inside and gap levels. Fills centroid
-/// (area centroid) and area of each Square; blobs[i] belongs to squares[i].
+/// (area centroid) and area of each Square; blobs[i] belongs to squares[i]; `ret_coverage`, if
+/// given, gets the coverage.
 Status find_squares(const cv::Mat &intensity, const SquareParams &params,
-		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs);
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs,
+		    SquareCoverage *ret_coverage = nullptr);
 
 // ---- stage 5: force-field corners + sub-pixel refinement -------------------------------------
 
@@ -130,6 +138,56 @@ struct HueParams {
 /// Confidence = margin between the nearest and second nearest cluster (0..1).
 Status classify_letters(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
 			const Pattern &pattern, const HueParams &params, std::vector<Square> *squares);
+
+// ---- stage 1d: letter planes (superposed slide copies) ---------------------------------------
+
+/// Two projectors of about the same pitch and roll that light the same part of the face (random
+/// booths, overlapping mode) superpose two copies of the slide offset by a fraction of a cell: the
+/// squares of a row run together into strips, which the intensity stage refuses, and a camera can
+/// decode nothing. Light adds, and the three letter colours are independent in RGB, so each pixel
+/// splits into the light of each letter: in one letter's plane the other copy's squares of other
+/// letters vanish and most squares stand alone again.
+struct LetterPlaneParams {
+	bool enabled = true;
+	/// Only a view that decodes fewer than this share of its squares from intensity alone is
+	/// searched again in the planes (the default scene decodes 72-82 %).
+	double max_decoded_share = 0.5;
+	/// Squares of each letter (from the intensity stage) needed to measure its colour in this view.
+	int min_squares_per_letter = 4;
+	/// A plane keeps a pixel only where its letter's light is at least this share of the
+	/// strongest letter's there (what a colour error leaks into the other planes stays out).
+	double min_share = 0.3;
+	/// A plane's square is the same as an intensity square when each holds the other's centre
+	/// and their areas differ by less than this factor; it is then not added.
+	double same_area_ratio = 1.6;
+	/// A plane's square is kept when 1 − (strongest other letter's mean light in it / its own)
+	/// reaches this; it is also its letter's confidence.
+	double min_confidence = 0.2;
+};
+
+/// The linear colour (B, G, R, inside minus gap, unit sum) of each letter in this view: the mean
+/// over the squares classify_letters gave that letter. -ENODATA when a letter has fewer than
+/// `min_squares` squares, -EINVAL on bad input.
+Status letter_colours(const cv::Mat &bgr, const std::vector<SquareBlob> &blobs,
+		      const std::vector<Square> &squares, int letters, double gamma, int min_squares,
+		      std::vector<cv::Vec3d> *ret_colours);
+
+/// Splits the frame's linear light into one CV_32F plane per letter by inverting the 3 × 3 mixing
+/// matrix of the letters' colours (exactly 3 letters; -EINVAL otherwise or when the colours are
+/// not independent). A plane is 0 where its share of the light is below `min_share`.
+Status letter_planes(const cv::Mat &bgr, double gamma, const std::vector<cv::Vec3d> &colours,
+		     double min_share, std::vector<cv::Mat> *ret_planes);
+
+/// Finds squares in each letter plane (find_squares, detect_corners on the plane, letter = the
+/// plane's) and merges them into `squares`/`blobs`. The planes cover the image from `origin`
+/// (they may be a crop). A plane square that is an intensity square already, that lies in one read
+/// whole (corners and a letter), that has no corners or is below `min_confidence` is skipped; an
+/// intensity square that holds a new plane square's centre was a blend of two copies and is
+/// dropped. -EINVAL on bad input.
+Status add_letter_squares(const std::vector<cv::Mat> &planes, cv::Point origin,
+			  const SquareParams &squares_params, const CornerParams &corner_params,
+			  const LetterPlaneParams &params, std::vector<Square> *squares,
+			  std::vector<SquareBlob> *blobs);
 
 // ---- stage 2: grid topology ------------------------------------------------------------------
 
@@ -190,6 +248,7 @@ struct DetectParams {
 	SquareParams squares;
 	CornerParams corners;
 	HueParams hue;
+	LetterPlaneParams planes;
 	GridParams grid;
 	DecodeParams decode;
 };

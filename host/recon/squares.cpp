@@ -193,7 +193,8 @@ double median_square_area(const std::vector<Square> &squares, double lo, double 
 } // namespace
 
 Status find_squares(const cv::Mat &intensity, const SquareParams &params,
-		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs)
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs,
+		    SquareCoverage *ret_coverage)
 {
 	if (intensity.empty() || intensity.type() != CV_32F)
 		return Status::error(EINVAL, "find_squares needs a CV_32F intensity image");
@@ -205,6 +206,8 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 	if (comps.empty()) {
 		ret_squares->clear();
 		ret_blobs->clear();
+		if (ret_coverage)
+			*ret_coverage = SquareCoverage{double(cv::countNonZero(mask)), 0};
 		return {};
 	}
 	double side = std::sqrt(median_area(comps));
@@ -275,8 +278,127 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 			keep_blob.push_back(std::move(add_blob[k]));
 		}
 	}
+	if (ret_coverage) {
+		SquareCoverage cov;
+		cov.lit_px = cv::countNonZero(mask);
+		for (const Square &s : keep_sq)
+			cov.square_px += s.area;
+		*ret_coverage = cov;
+	}
 	*ret_squares = std::move(keep_sq);
 	*ret_blobs = std::move(keep_blob);
+	return {};
+}
+
+Status add_letter_squares(const std::vector<cv::Mat> &planes, cv::Point origin,
+			  const SquareParams &squares_params, const CornerParams &corner_params,
+			  const LetterPlaneParams &params, std::vector<Square> *squares,
+			  std::vector<SquareBlob> *blobs)
+{
+	if (squares->size() != blobs->size())
+		return Status::error(EINVAL, "add_letter_squares: one blob per square expected");
+	if (planes.empty())
+		return Status::error(EINVAL, "add_letter_squares needs planes");
+	for (const cv::Mat &p : planes)
+		if (p.empty() || p.type() != CV_32F || p.size() != planes[0].size())
+			return Status::error(EINVAL, "add_letter_squares needs CV_32F planes of one size");
+	const size_t n_before = squares->size();
+	const cv::Rect area(origin, planes[0].size());
+	std::vector<char> blended(n_before, 0);
+	std::vector<Square> add_sq;
+	std::vector<SquareBlob> add_blob;
+	// The squares read whole (corners and a letter) are dark in the planes: a plane finds at most
+	// a piece of one there (the skin's tint shifts a letter's colour under the lips, the brows),
+	// and most of the planes' blobs, the cost of find_squares, go with them.
+	cv::Mat whole(planes[0].size(), CV_8U, cv::Scalar(0));
+	for (size_t j = 0; j < n_before; j++) {
+		const SquareBlob &b = (*blobs)[j];
+		const cv::Rect in = b.box & area;
+		if ((*squares)[j].has_corners && (*squares)[j].letter >= 0 && in.area() > 0)
+			whole(in - origin).setTo(255, b.mask(in - b.box.tl()));
+	}
+	cv::dilate(whole, whole, cv::Mat(), cv::Point(-1, -1), 2);
+	std::vector<cv::Mat> smooth(planes.size()), search(planes.size());
+	for (size_t l = 0; l < planes.size(); l++) {
+		cv::GaussianBlur(planes[l], smooth[l], cv::Size(5, 5), 1.0, 1.0, cv::BORDER_REPLICATE);
+		search[l] = smooth[l].clone();
+		search[l].setTo(0, whole);
+	}
+	const cv::Point2d shift(origin);
+	for (size_t l = 0; l < planes.size(); l++) {
+		std::vector<Square> sq;
+		std::vector<SquareBlob> bl;
+		Status st = find_squares(search[l], squares_params, &sq, &bl);
+		if (!st.ok())
+			return st;
+		// A plane square the intensity stage has already, or that is not mostly this letter's
+		// light (what a colour error leaks into the plane), is dropped before the corners.
+		std::vector<Square> fresh;
+		std::vector<SquareBlob> fresh_blobs;
+		std::vector<cv::Point> centre; // area centroids, image pixels (detect_corners moves the centroid)
+		for (size_t k = 0; k < sq.size(); k++) {
+			const cv::Point c(int(sq[k].centroid.x + shift.x), int(sq[k].centroid.y + shift.y));
+			const cv::Rect box = bl[k].box + origin;
+			bool known = false;
+			for (size_t j = 0; j < n_before && !known; j++) {
+				const Square &o = (*squares)[j];
+				const double ratio = std::max(o.area, sq[k].area) / std::max(1.0, std::min(o.area, sq[k].area));
+				known = ratio < params.same_area_ratio && (*blobs)[j].box.contains(c) &&
+					box.contains(cv::Point(int(o.centroid.x), int(o.centroid.y)));
+			}
+			if (known)
+				continue;
+			// Its own light against the strongest other letter's inside it (the other copy's
+			// squares overlap part of it).
+			const SquareBlob &b = bl[k];
+			const double own = cv::mean(smooth[l](b.box), b.mask)[0];
+			double other = 0;
+			for (size_t m = 0; m < planes.size(); m++)
+				if (m != l)
+					other = std::max(other, cv::mean(smooth[m](b.box), b.mask)[0]);
+			const double confidence = own > 0 ? std::clamp(1 - other / own, 0.0, 1.0) : 0.0;
+			if (confidence < params.min_confidence)
+				continue;
+			sq[k].letter = int(l);
+			sq[k].confidence = float(confidence);
+			fresh.push_back(sq[k]);
+			centre.push_back(c);
+			fresh_blobs.push_back(std::move(bl[k]));
+		}
+		detect_corners(smooth[l], fresh_blobs, corner_params, &fresh);
+		for (size_t k = 0; k < fresh.size(); k++) {
+			// Without corners a plane's blob is as likely a colour fringe along another
+			// square's edge (blur, demosaicing) as a square: it would only steal grid links.
+			if (!fresh[k].has_corners)
+				continue;
+			for (size_t j = 0; j < n_before; j++) {
+				const SquareBlob &o = (*blobs)[j];
+				if (o.box.contains(centre[k]) && o.mask.at<uchar>(centre[k] - o.box.tl()))
+					blended[j] = 1;
+			}
+			Square q = fresh[k];
+			q.centroid += shift;
+			for (cv::Point2d &p : q.corners)
+				p += shift;
+			SquareBlob b = std::move(fresh_blobs[k]);
+			b.box += origin;
+			add_sq.push_back(q);
+			add_blob.push_back(std::move(b));
+		}
+	}
+	std::vector<Square> out_sq;
+	std::vector<SquareBlob> out_blob;
+	for (size_t j = 0; j < n_before; j++)
+		if (!blended[j]) {
+			out_sq.push_back((*squares)[j]);
+			out_blob.push_back(std::move((*blobs)[j]));
+		}
+	for (size_t k = 0; k < add_sq.size(); k++) {
+		out_sq.push_back(add_sq[k]);
+		out_blob.push_back(std::move(add_blob[k]));
+	}
+	*squares = std::move(out_sq);
+	*blobs = std::move(out_blob);
 	return {};
 }
 
