@@ -429,17 +429,24 @@ static void test_booth_button(void **)
 	assert_no_log_mentions("BOOTH-7");
 }
 
-// GpioMcu gives the loop the button line's fd beside the link's, and the debounce's deadline:
-// nothing is polled on a timer, so an edge that left the fd quiet would never be seen. The fake
-// line's fd is its pipe; the real line's is libgpiod's event fd, the same contract on gpio-sim
-// (tests/vm/test_vm_gpio.c, test_fd_wakes_on_an_edge).
-static void test_gpio_mcu_watched_not_polled(void **)
+// The booth's lines on the gpio driver's fake chip.
+static fscan_gpio_config fake_gpio_lines()
 {
 	fscan_gpio_config g{};
 	g.chip = "fake";
 	g.button_line = 3;
 	g.led_line = 4;
 	g.reset_line = 5;
+	return g;
+}
+
+// GpioMcu gives the loop the button line's fd beside the link's, and the debounce's deadline:
+// nothing is polled on a timer, so an edge that left the fd quiet would never be seen. The fake
+// line's fd is its pipe; the real line's is libgpiod's event fd, the same contract on gpio-sim
+// (tests/vm/test_vm_gpio.c, test_fd_wakes_on_an_edge).
+static void test_gpio_mcu_watched_not_polled(void **)
+{
+	fscan_gpio_config g = fake_gpio_lines();
 	g.debounce_ms = 1000; // wide, so that a slow machine cannot let the hold pass unseen
 	fscan_gpio *gpio = nullptr;
 	assert_int_equal(fscan_gpio_create(&fscan_gpio_fake_ops, &g, &gpio), 0);
@@ -488,11 +495,7 @@ static void test_gpio_mcu_watched_not_polled(void **)
 
 static void test_gpio_button_and_led(void **)
 {
-	fscan_gpio_config g{};
-	g.chip = "fake";
-	g.button_line = 3;
-	g.led_line = 4;
-	g.reset_line = 5;
+	fscan_gpio_config g = fake_gpio_lines();
 	fscan_gpio *gpio = nullptr;
 	assert_int_equal(fscan_gpio_create(&fscan_gpio_fake_ops, &g, &gpio), 0);
 	Rig rig(Mode::booth, 0, gpio);
