@@ -632,50 +632,6 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 	return prior;
 }
 
-int fill_prior_holes(const cv::Mat &lit, int reach_px, int hole_px, cv::Mat *prior, cv::Mat *ret_filled)
-{
-	*ret_filled = cv::Mat(prior->size(), CV_8U, cv::Scalar(0));
-	// Distance to, and raster index of, the nearest pixel with a prior (the zeros of `none`).
-	const cv::Mat has = has_value(*prior);
-	if (cv::countNonZero(has) == 0)
-		return 0;
-	cv::Mat none = ~has, dist, labels;
-	// Only holes: pieces without a prior that the prior encloses (smaller than hole_px).
-	cv::Mat hole_labels, hole_stats, centroids;
-	const int nh = cv::connectedComponentsWithStats(none, hole_labels, hole_stats, centroids, 4, CV_32S);
-	std::vector<char> is_hole(size_t(nh), 0);
-	for (int l = 1; l < nh; ++l) {
-		const int *st = hole_stats.ptr<int>(l);
-		is_hole[size_t(l)] = st[cv::CC_STAT_AREA] <= hole_px && st[cv::CC_STAT_LEFT] > 0 && st[cv::CC_STAT_TOP] > 0 &&
-				     st[cv::CC_STAT_LEFT] + st[cv::CC_STAT_WIDTH] < prior->cols &&
-				     st[cv::CC_STAT_TOP] + st[cv::CC_STAT_HEIGHT] < prior->rows;
-	}
-	cv::distanceTransform(none, dist, labels, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-	std::vector<float> value_of_label(1, 0.f);
-	for (int y = 0; y < prior->rows; ++y) {
-		const float *pr = prior->ptr<float>(y);
-		for (int x = 0; x < prior->cols; ++x)
-			if (pr[x] == pr[x])
-				value_of_label.push_back(pr[x]);
-	}
-	int filled = 0;
-	for (int y = 0; y < prior->rows; ++y) {
-		float *pr = prior->ptr<float>(y);
-		const float *dr = dist.ptr<float>(y);
-		const int *lr = labels.ptr<int>(y);
-		const uchar *li = lit.ptr<uchar>(y);
-		for (int x = 0; x < prior->cols; ++x)
-			if (pr[x] != pr[x] && li[x] && dr[x] <= float(reach_px) && lr[x] > 0 &&
-			    is_hole[size_t(hole_labels.at<int>(y, x))] &&
-			    size_t(lr[x]) < value_of_label.size()) {
-				pr[x] = value_of_label[size_t(lr[x])];
-				ret_filled->at<uchar>(y, x) = 255;
-				filled++;
-			}
-	}
-	return filled;
-}
-
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
 		  DenseStats *ret_stats, DensePairDebug *ret_debug)
@@ -717,10 +673,6 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	grey_l.convertTo(grey_l32, CV_32F);
 	cv::Mat lit;
 	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, &lit, &stats);
-	cv::Mat filled_prior;
-	if (params.prior_fill_px > 0)
-		stats.prior_filled =
-			fill_prior_holes(lit, params.prior_fill_px, params.prior_hole_px, &prior, &filled_prior);
 	// Why each pixel has no point, for the debug output only.
 	const bool why = ret_debug != nullptr;
 	cv::Mat reason;

@@ -52,11 +52,6 @@ struct DenseParams {
 	double volume_depth_mm = 150, volume_side_mm = 120;
 	/// The prior is extended past its rim by this many median seed spacings (nearest value).
 	double extrapolate_spacings = 0.0;
-	/// Lit pixels without a prior (a hole the coarse search refused, the prior's edge) within this
-	/// many pixels of one take the nearest prior value; the residual search (± residual_px) then
-	/// finds the match. 0: off.
-	int prior_fill_px = 0;
-	int prior_hole_px = 300; // ... only in pieces without a prior this small (holes, not the edge)
 	int min_seeds = 6;	    // fewer seeds: the code gives no prior (the coarse search alone does)
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
@@ -126,7 +121,6 @@ struct DenseStats {
 	int seeds = 0;	       // sparse points used
 	int prior_pixels = 0;  // pixels with a prior (matching resolution)
 	int coarse_pixels = 0; // ... of which the coarse search gave the prior
-	int prior_filled = 0;  // ... of which the nearest prior value gave it (prior_fill_px)
 	int unlit = 0;	       // prior pixels dropped as not under the pattern
 	int matched = 0;       // pixels SGBM matched inside the prior
 	int low_confidence = 0; // dropped by NCC
@@ -158,11 +152,6 @@ struct DenseStats {
 /// (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted) in `stats`.
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
 		      cv::Mat *total, DenseStats *stats);
-
-/// Gives each `lit` pixel of `prior` (CV_32F, NaN = none) without a value, within `reach_px` of
-/// one with a value, that nearest value (the coarse search's holes and the prior's edge: the
-/// residual search finds the match from there). Returns the pixels filled.
-int fill_prior_holes(const cv::Mat &lit, int reach_px, int hole_px, cv::Mat *prior, cv::Mat *ret_filled);
 
 /// Why a rectified left pixel has no point in the pair's cloud (DensePairDebug::reason), in the
 /// stages' order: the last stage that looked at it. `facescan evaluate --missing` reads them.

@@ -348,7 +348,6 @@ std::string report_json(const ReconReport &r)
 				   {"prior_pixels", p.dense.prior_pixels},
 				   {"matched", p.dense.matched},
 				   {"coarse_pixels", p.dense.coarse_pixels},
-				   {"prior_filled", p.dense.prior_filled},
 				   {"unlit", p.dense.unlit},
 				   {"low_confidence", p.dense.low_confidence},
 				   {"near_unmatched", p.dense.near_unmatched},

@@ -11,7 +11,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <cstdio>
 
 #include "cmocka.hpp"
@@ -552,42 +551,6 @@ static void refinement_keeps_disparity_next_to_holes(void **)
 	assert_int_equal(next_to_hole_moved, 0);
 }
 
-// The prior's holes take their nearest value; its edge, big holes and unlit pixels do not. A ramp
-// d = 20 + 0.1 x with a 5 x 5 hole (filled), a 30 x 30 hole (over hole_px: left), a NaN band along
-// the right edge (not enclosed: left) and one unlit pixel inside the small hole (left).
-static void prior_holes_filled_from_their_edge(void **)
-{
-	const float nan = std::numeric_limits<float>::quiet_NaN();
-	cv::Mat prior(100, 200, CV_32F);
-	for (int y = 0; y < prior.rows; ++y)
-		for (int x = 0; x < prior.cols; ++x)
-			prior.at<float>(y, x) = 20.f + 0.1f * float(x);
-	prior(cv::Rect(40, 40, 5, 5)).setTo(nan);
-	prior(cv::Rect(100, 30, 30, 30)).setTo(nan);
-	prior(cv::Rect(190, 0, 10, 100)).setTo(nan);
-	cv::Mat lit(prior.size(), CV_8U, cv::Scalar(255));
-	lit.at<uchar>(42, 43) = 0;
-	cv::Mat filled;
-	const int n = fill_prior_holes(lit, 6, 300, &prior, &filled);
-	std::printf("filled %d (want 24)\n", n);
-	assert_int_equal(n, 24);
-	assert_int_equal(cv::countNonZero(filled), 24);
-	for (int y = 40; y < 45; ++y)
-		for (int x = 40; x < 45; ++x) {
-			const float v = prior.at<float>(y, x);
-			if (y == 42 && x == 43) {
-				assert_true(v != v);
-				continue;
-			}
-			// The nearest prior pixel is one of the hole's edge columns or rows.
-			assert_true(v == v && v >= 20.f + 0.1f * 39 - 1e-4f && v <= 20.f + 0.1f * 45 + 1e-4f);
-		}
-	assert_true(prior.at<float>(40, 40) < 20.f + 0.1f * 40 + 1e-4f); // from column 39
-	assert_true(prior.at<float>(42, 44) > 20.f + 0.1f * 45 - 1e-4f); // from column 45
-	assert_int_equal(cv::countNonZero(has_value(prior(cv::Rect(100, 30, 30, 30)))), 0);
-	assert_int_equal(cv::countNonZero(has_value(prior(cv::Rect(190, 0, 10, 100)))), 0);
-}
-
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -602,7 +565,6 @@ int main(void)
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
-		cmocka_unit_test(prior_holes_filled_from_their_edge),
 		cmocka_unit_test(fusion_makes_one_sheet),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
