@@ -1,9 +1,11 @@
 // Reconstruction accuracy metrics. See eval.hpp.
 #include "eval/eval.hpp"
 #include "mesh_io/mesh_io.hpp"
+#include "recon/dense.hpp"
 #include "recon/fusion.hpp"
 #include "recon/raster.hpp"
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -295,6 +297,111 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	}
 	*ret_result = r;
 	return {};
+}
+
+Status read_pair_traces(const std::string &debug_dir, std::vector<PairTrace> *ret_traces)
+{
+	std::vector<PairTrace> traces;
+	for (int p = 0;; ++p) {
+		const std::string stem = debug_dir + "/pair" + std::to_string(p);
+		if (access((stem + "_rectification.yaml").c_str(), F_OK) != 0)
+			break;
+		PairTrace t;
+		cv::FileStorage fs(stem + "_rectification.yaml", cv::FileStorage::READ);
+		cv::Mat m;
+		if (fs.isOpened()) {
+			fs["cam_a"] >> t.cam_a;
+			fs["cam_b"] >> t.cam_b;
+			fs["world_to_left"] >> m;
+		}
+		if (m.rows != 3 || m.cols != 4 || m.type() != CV_64F || t.cam_a < 0 || t.cam_b < 0)
+			return Status::error(-EINVAL, stem + "_rectification.yaml: malformed");
+		t.world_to_left = cv::Matx34d(m);
+		t.reason = cv::imread(stem + "_reasons.png", cv::IMREAD_UNCHANGED);
+		if (t.reason.empty() || t.reason.type() != CV_8U)
+			return Status::error(-EINVAL, stem + "_reasons.png: missing or not 8-bit grey");
+		recon::Mesh cloud;
+		if (access((stem + "_dense.ply").c_str(), F_OK) == 0) {
+			Status s = mesh_io::read_ply(stem + "_dense.ply", &cloud);
+			if (!s.ok())
+				return s;
+		}
+		t.cloud = std::move(cloud.positions);
+		traces.push_back(std::move(t));
+	}
+	if (traces.empty())
+		return Status::error(-ENOENT, debug_dir + ": no pair0_rectification.yaml (not a recon --debug directory?)");
+	*ret_traces = std::move(traces);
+	return {};
+}
+
+const char *miss_reason_name(int reason)
+{
+	static const char *const names[kMissReasons] = {
+		"no pair sees it", "no prior",	       "unlit (contrast)", "SGBM refused", "dark",
+		"low NCC",	   "search edge",      "near refused",	   "flat dropped", "rim",
+		"steep",	   "island",	       "kept, > 1 mm off", "lost in the surface"};
+	return reason >= 0 && reason < kMissReasons ? names[reason] : "?";
+}
+
+std::vector<signed char> attribute_missing(const recon::Mesh &truth, const EvalResult &result,
+					   const std::vector<CameraModel> &cameras,
+					   const std::vector<PairTrace> &traces, const EvalParams &params)
+{
+	const size_t n = truth.positions.size();
+	std::vector<signed char> why(n, -1);
+	if (result.truth_status.size() != n)
+		return why;
+	const std::vector<cv::Point3f> normals = recon::vertex_normals(truth.positions, truth.triangles);
+	std::vector<std::vector<char>> seen(cameras.size());
+	for (size_t c = 0; c < cameras.size(); ++c)
+		seen[c] = seen_by(cameras[c], truth, normals, params);
+	const double cell = params.completeness_mm;
+	auto key = [cell](const cv::Point3f &q) {
+		return (int64_t(std::floor(q.x / cell)) * 73856093) ^ (int64_t(std::floor(q.y / cell)) * 19349663) ^
+		       (int64_t(std::floor(q.z / cell)) * 83492791);
+	};
+	for (size_t i = 0; i < n; ++i)
+		if (result.truth_status[i] == 0)
+			why[i] = kMissNoPair;
+	for (const PairTrace &t : traces) {
+		if (size_t(std::max(t.cam_a, t.cam_b)) >= cameras.size())
+			continue;
+		// The cloud by cells of completeness_mm, for "is a point of it that near".
+		std::unordered_map<int64_t, std::vector<uint32_t>> grid;
+		for (size_t k = 0; k < t.cloud.size(); ++k)
+			grid[key(t.cloud[k])].push_back(uint32_t(k));
+		auto near_cloud = [&](const cv::Point3f &q) {
+			for (int dx = -1; dx <= 1; ++dx)
+				for (int dy = -1; dy <= 1; ++dy)
+					for (int dz = -1; dz <= 1; ++dz) {
+						const cv::Point3f o(q.x + float(dx * cell), q.y + float(dy * cell), q.z + float(dz * cell));
+						const auto it = grid.find(key(o));
+						if (it == grid.end())
+							continue;
+						for (uint32_t k : it->second)
+							if (cv::norm(t.cloud[k] - q) <= cell)
+								return true;
+					}
+			return false;
+		};
+		for (size_t i = 0; i < n; ++i) {
+			if (why[i] < 0 || !seen[size_t(t.cam_a)][i] || !seen[size_t(t.cam_b)][i])
+				continue;
+			const cv::Point3f &q = truth.positions[i];
+			const cv::Vec3d x = t.world_to_left * cv::Vec4d(q.x, q.y, q.z, 1);
+			if (!(x[2] > 0))
+				continue;
+			const int u = int(std::lround(x[0] / x[2])), v = int(std::lround(x[1] / x[2]));
+			int r = recon::kReasonNoPrior;
+			if (u >= 0 && v >= 0 && u < t.reason.cols && v < t.reason.rows)
+				r = std::max(int(t.reason.at<uchar>(v, u)), int(recon::kReasonNoPrior));
+			if (r == recon::kReasonKept)
+				r = near_cloud(q) ? kMissFused : kMissOff;
+			why[i] = static_cast<signed char>(std::max(int(why[i]), r));
+		}
+	}
+	return why;
 }
 
 } // namespace facescan::eval

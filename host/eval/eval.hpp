@@ -89,4 +89,38 @@ std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, co
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
 		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result);
 
+/// One pair's dense stage as `facescan recon --debug DIR` left it: its cameras, the projection of
+/// a world point into its rectified left view, per rectified pixel the recon::DenseReason, and
+/// its cloud as the surface got it.
+struct PairTrace {
+	int cam_a = -1, cam_b = -1;
+	cv::Matx34d world_to_left;
+	cv::Mat reason; // CV_8U
+	std::vector<cv::Point3f> cloud;
+};
+
+/// Reads DIR/pair{p}_rectification.yaml, pair{p}_reasons.png and pair{p}_dense.ply for p = 0, 1,
+/// ... while they exist (a pair whose dense stage failed has none and ends the list). -ENOENT
+/// when DIR has no pair's.
+Status read_pair_traces(const std::string &debug_dir, std::vector<PairTrace> *ret_traces);
+
+/// Where a missed truth point went, the furthest any pair seeing it got: values 1-11 are the
+/// recon::DenseReason the pair's pixel got; and these.
+enum MissReason : signed char {
+	kMissNoPair = 0,	 // no pair's two cameras both see it (seen by two cameras of no pair)
+	kMissOff = 12,		 // a pair kept the pixel, its cloud has no point within completeness_mm
+	kMissFused = 13,	 // a pair's cloud has a point within completeness_mm: the surface lost it
+	kMissReasons = 14,
+};
+
+/// Short name of a MissReason (for tables and legends).
+const char *miss_reason_name(int reason);
+
+/// Per truth vertex: -1 when `result` did not count it missed, else its MissReason over the pairs
+/// in `traces` whose two cameras see it (seen_by with `params`). The pixel a point falls on is
+/// its nearest in the pair's rectified left view.
+std::vector<signed char> attribute_missing(const recon::Mesh &truth, const EvalResult &result,
+					   const std::vector<CameraModel> &cameras,
+					   const std::vector<PairTrace> &traces, const EvalParams &params);
+
 } // namespace facescan::eval

@@ -24,9 +24,15 @@ struct DebugCloud {
 	std::vector<float> value; // per point (confidence), shown as a colour
 };
 
+struct DebugText {
+	std::string name; // file name with its extension, e.g. "pair0_rectification.yaml"
+	std::string text;
+};
+
 struct ReconDebug {
 	std::vector<DebugImage> images;
 	std::vector<DebugCloud> clouds;
+	std::vector<DebugText> texts;
 };
 
 /// The frame with each square's outline (its letter's colour; grey when unknown), its cell id,

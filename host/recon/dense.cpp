@@ -673,6 +673,11 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	grey_l.convertTo(grey_l32, CV_32F);
 	cv::Mat lit;
 	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, &lit, &stats);
+	// Why each pixel has no point, for the debug output only.
+	const bool why = ret_debug != nullptr;
+	cv::Mat reason;
+	if (why)
+		reason = cv::Mat(rp.size, CV_8U, cv::Scalar(kReasonNoPrior));
 	// Only where the pattern falls.
 	for (int y = 0; y < prior.rows; ++y) {
 		float *pr = prior.ptr<float>(y);
@@ -681,6 +686,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			if (pr[x] == pr[x] && !lr[x]) {
 				pr[x] = std::numeric_limits<float>::quiet_NaN();
 				stats.unlit++;
+				if (why)
+					reason.at<uchar>(y, x) = kReasonUnlit;
 			}
 	}
 
@@ -760,25 +767,33 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		for (int x = 0; x < rp.size.width; ++x) {
 			if (pr[x] != pr[x])
 				continue;
+			uchar dummy = 0;
+			uchar &rr = why ? reason.at<uchar>(y, x) : dummy;
 			if (dr[x] < mind * 16) {
 				fail.at<uchar>(y, x) = 255;
+				rr = kReasonRefused;
 				continue;
 			}
-			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity)
+			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity) {
+				rr = kReasonDark;
 				continue;
+			}
 			stats.matched++;
 			// Inside a flat square the window has no texture and NCC says nothing: SGBM's
 			// smoothness carries the disparity across it from the square's edges.
 			if (sr[x] > 4 && nr[x] < params.min_confidence) {
 				stats.low_confidence++;
+				rr = kReasonLowConfidence;
 				continue;
 			}
 			const float r = dr[x] / 16.f;
 			// At the edge of the search the true match may lie outside it.
 			if (std::fabs(r) > float(params.residual_px) - params.edge_margin_px) {
 				stats.at_search_edge++;
+				rr = kReasonSearchEdge;
 				continue;
 			}
+			rr = kReasonKept;
 			// The prior is read where the match landed: d = r + prior(x - r).
 			const int xs = int(std::lround(x - r));
 			const float p = xs >= 0 && xs < rp.size.width && pr[xs] == pr[xs] ? pr[xs] : pr[x];
@@ -795,11 +810,17 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		near &= valid;
 		stats.near_unmatched = cv::countNonZero(near);
 		valid.setTo(0, near);
+		if (why)
+			reason.setTo(kReasonNearRefused, near);
 	}
 	if (params.refine_iterations > 0)
 		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
-	if (params.flat_fill)
+	if (params.flat_fill) {
+		const cv::Mat before = why ? valid.clone() : cv::Mat();
 		fill_flat_regions(grey_l, std_l, params, &valid, &total, &stats);
+		if (why)
+			reason.setTo(kReasonFlatDropped, before & ~valid);
+	}
 	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
 	// rim of the matched region are where matches go wrong: both are trimmed.
 	{
@@ -835,11 +856,15 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			eroded &= valid;
 			cv::Mat rim = valid & ~eroded;
 			stats.rim += cv::countNonZero(rim);
+			if (why)
+				reason.setTo(kReasonRim, rim);
 			valid = eroded;
 		}
 		cv::dilate(bad, bad, cv::Mat(), cv::Point(-1, -1), 1);
 		cv::Mat steep = valid & bad;
 		stats.steep += cv::countNonZero(steep);
+		if (why)
+			reason.setTo(kReasonSteep, steep);
 		valid.setTo(0, bad);
 	}
 	// Islands are mismatches (a lit speck of hair, the rim of a shadow): only regions of at least
@@ -857,6 +882,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 				if (vr[x] && !keep[size_t(lr[x])]) {
 					vr[x] = 0;
 					stats.islands++;
+					if (why)
+						reason.at<uchar>(y, x) = kReasonIsland;
 				}
 		}
 	}
@@ -887,6 +914,13 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		ret_debug->prior = prior;
 		ret_debug->disparity = cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
 		total.copyTo(ret_debug->disparity, valid);
+		ret_debug->reason = reason;
+		// rectified = R1 (R_a X + T_a), then the rectified pinhole (f, cx1, cy).
+		const cv::Matx33d k(rp.f, 0, rp.cx1, 0, rp.f, rp.cy, 0, 0, 1);
+		const cv::Matx33d r = k * rp.R1 * a.R;
+		const cv::Vec3d t = k * (rp.R1 * a.T);
+		ret_debug->world_to_left = cv::Matx34d(r(0, 0), r(0, 1), r(0, 2), t[0], r(1, 0), r(1, 1), r(1, 2), t[1],
+						       r(2, 0), r(2, 1), r(2, 2), t[2]);
 	}
 	*ret_cloud = std::move(cloud);
 	if (ret_stats)

@@ -153,11 +153,30 @@ struct DenseStats {
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
 		      cv::Mat *total, DenseStats *stats);
 
+/// Why a rectified left pixel has no point in the pair's cloud (DensePairDebug::reason), in the
+/// stages' order: the last stage that looked at it. `facescan evaluate --missing` reads them.
+enum DenseReason : unsigned char {
+	kReasonNoPrior = 1,	   // outside the seeds' triangles and the coarse search's matches
+	kReasonUnlit = 2,	   // a prior, but not under the pattern (grey contrast)
+	kReasonRefused = 3,	   // SGBM's left-right, uniqueness or speckle check refused it
+	kReasonDark = 4,	   // below min_intensity in either view
+	kReasonLowConfidence = 5,  // NCC < min_confidence
+	kReasonSearchEdge = 6,	   // at the residual range's end
+	kReasonNearRefused = 7,	   // within unmatched_margin_px of a refused pixel
+	kReasonFlatDropped = 8,	   // a flat region's pixel out of the texture's reach
+	kReasonRim = 9,		   // the matched region's rim
+	kReasonSteep = 10,	   // steep disparity
+	kReasonIsland = 11,	   // a small matched region
+	kReasonKept = 12,	   // in the cloud
+};
+
 /// What dense_pair saw, for `recon --debug`: the rectified left view, the right view warped by the
 /// prior (where the prior is right, the two line up), the prior and the final disparity (CV_32F,
-/// NaN where none).
+/// NaN where none); per pixel the DenseReason (CV_8U) and the projection of a world point (mm,
+/// before registration) into the rectified left view.
 struct DensePairDebug {
-	cv::Mat left, warped, prior, disparity;
+	cv::Mat left, warped, prior, disparity, reason;
+	cv::Matx34d world_to_left;
 };
 
 /// Rectification of a pair at a matching scale: rotations R1, R2 (camera → rectified), shared

@@ -247,7 +247,12 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 				ret_debug->images.push_back({name + "_left_over_warped", overlay});
 				ret_debug->images.push_back({name + "_prior", colour_map(dbg[p].prior, lo, hi)});
 				ret_debug->images.push_back({name + "_disparity", colour_map(dbg[p].disparity, lo, hi)});
-				ret_debug->clouds.push_back({name + "_dense", clouds[p].points, clouds[p].confidence});
+				// Raw DenseReason codes (1-12), not for the eye: `facescan evaluate --missing`.
+				ret_debug->images.push_back({name + "_reasons", dbg[p].reason});
+				cv::FileStorage fs(".yaml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+				fs << "cam_a" << int(p) << "cam_b" << int(p + 1) << "world_to_left"
+				   << cv::Mat(dbg[p].world_to_left);
+				ret_debug->texts.push_back({name + "_rectification.yaml", fs.releaseAndGetString()});
 			}
 			// One pair's failure costs its view, not the scan: the other pairs' clouds still
 			// make a surface (the report says which pair is missing and why).
@@ -267,6 +272,12 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 			if (!s.ok())
 				return s;
 		}
+		// The clouds as the surface gets them (moved by the registration).
+		if (ret_debug)
+			for (size_t p = 0; p < clouds.size(); ++p)
+				if (!clouds[p].points.empty())
+					ret_debug->clouds.push_back({"pair" + std::to_string(p) + "_dense", clouds[p].points,
+								     clouds[p].confidence});
 		timer.lap("dense");
 		Mesh dense;
 		s = fuse_dense(clouds, cams, params.surface, &dense, &report.surface);

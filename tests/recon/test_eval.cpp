@@ -1,5 +1,7 @@
 // host/eval: point-triangle distance, and metrics of a known offset surface.
 #include "eval/eval.hpp"
+#include "recon/dense.hpp"
+#include "recon/fusion.hpp"
 
 #include "cmocka.hpp"
 #include "synthetic_rig.hpp"
@@ -104,12 +106,73 @@ static void test_duplicates_count_once(void **)
 	assert_true(std::fabs(many.vertex_mm[5000] - 0.2) < 0.01);
 }
 
+// evaluate --missing: a missed point takes the furthest reason over the pairs that see it. Pair
+// (0, 1) "rectifies" onto camera 0's own image: its left half says rim, its right half kept, and
+// its cloud holds the truth where y > 40 mm; pair (1, 2) says no prior everywhere.
+static void test_attribute_missing(void **)
+{
+	const recon::Mesh truth = sphere(85);
+	recon::Mesh half = sphere(85.2);
+	half.triangles.resize(half.triangles.size() / 2);
+	const std::vector<CameraModel> cams = synth::ring();
+	eval::EvalResult r;
+	assert_true(eval::evaluate(half, truth, cams, {}, eval::EvalParams(), &r).ok());
+	eval::PairTrace t01, t12;
+	t01.cam_a = 0;
+	t01.cam_b = 1;
+	const cv::Matx33d &k = cams[0].K;
+	const cv::Matx33d kr = k * cams[0].R;
+	const cv::Vec3d kt = k * cams[0].T;
+	t01.world_to_left = cv::Matx34d(kr(0, 0), kr(0, 1), kr(0, 2), kt[0], kr(1, 0), kr(1, 1), kr(1, 2), kt[1],
+					kr(2, 0), kr(2, 1), kr(2, 2), kt[2]);
+	t01.reason = cv::Mat(cams[0].size, CV_8U, cv::Scalar(recon::kReasonKept));
+	t01.reason.colRange(0, 800).setTo(recon::kReasonRim);
+	for (const cv::Point3f &q : truth.positions)
+		if (q.y > 40)
+			t01.cloud.push_back(q * 1.001f);
+	t12 = t01;
+	t12.cam_a = 1;
+	t12.cam_b = 2;
+	t12.reason = cv::Mat(cams[1].size, CV_8U, cv::Scalar(recon::kReasonNoPrior));
+	t12.cloud.clear();
+	const std::vector<signed char> why = eval::attribute_missing(truth, r, cams, {t01, t12}, eval::EvalParams());
+	const std::vector<cv::Point3f> normals = recon::vertex_normals(truth.positions, truth.triangles);
+	std::vector<std::vector<char>> seen;
+	for (int c = 0; c < 3; ++c)
+		seen.push_back(eval::seen_by(cams[size_t(c)], truth, normals, eval::EvalParams()));
+	std::vector<int> count(eval::kMissReasons, 0);
+	for (size_t i = 0; i < why.size(); ++i) {
+		if (r.truth_status[i] != 0) {
+			assert_int_equal(why[i], -1);
+			continue;
+		}
+		int want = eval::kMissNoPair;
+		if (seen[0][i] && seen[1][i]) {
+			const cv::Vec3d x = t01.world_to_left * cv::Vec4d(truth.positions[i].x, truth.positions[i].y,
+									   truth.positions[i].z, 1);
+			const long u = std::lround(x[0] / x[2]), v = std::lround(x[1] / x[2]);
+			// Out of the pinhole's frame (the cameras' distortion brings a few in): no prior.
+			const bool in = u >= 0 && v >= 0 && u < 1600 && v < 1200;
+			want = !in ? int(recon::kReasonNoPrior) : u < 800 ? int(recon::kReasonRim) : truth.positions[i].y > 40 ? int(eval::kMissFused) : int(eval::kMissOff);
+		} else if (seen[1][i] && seen[2][i]) {
+			want = recon::kReasonNoPrior;
+		}
+		assert_int_equal(why[i], want);
+		count[size_t(why[i])]++;
+	}
+	std::printf("truth %zu, missed: no pair %d, no prior %d, rim %d, off %d, fused %d\n", why.size(), count[0], count[1],
+		    count[recon::kReasonRim], count[eval::kMissOff], count[eval::kMissFused]);
+	for (int k2 : {0, 1, int(recon::kReasonRim), int(eval::kMissOff), int(eval::kMissFused)})
+		assert_true(count[size_t(k2)] > 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(test_point_triangle_distance),
 		cmocka_unit_test(test_offset_surface),
 		cmocka_unit_test(test_duplicates_count_once),
+		cmocka_unit_test(test_attribute_missing),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

@@ -35,6 +35,10 @@ static void evaluate_usage(FILE *out)
 		     "                   magenta beyond (where the RMS comes from)\n"
 		     "  --coverage OUT.ply  the truth mesh coloured by completeness: green covered,\n"
 		     "                   red missed, grey not counted (seen by < 2 cameras or unlit)\n"
+		     "  --missing OUT.ply  with --recon-debug DIR (facescan recon --debug DIR of MESH):\n"
+		     "                   where each missed truth point went, over the pairs whose two\n"
+		     "                   cameras see it (the furthest any got): printed as a table, and\n"
+		     "                   the truth mesh coloured by it (docs/recon.md, Limits)\n"
 		     "  --report R.json  the recon report of MESH (facescan recon --report), and\n"
 		     "  --markdown NAME  print one row of docs/benchmarks.md's table for it instead\n");
 }
@@ -48,9 +52,12 @@ int evaluate_main(int argc, char **argv)
 					 {"markdown", required_argument, nullptr, 'm'},
 					 {"coverage", required_argument, nullptr, 'c'},
 					 {"errors", required_argument, nullptr, 'e'},
+					 {"missing", required_argument, nullptr, 'M'},
+					 {"recon-debug", required_argument, nullptr, 'D'},
 					 {"help", no_argument, nullptr, 'h'},
 					 {nullptr, 0, nullptr, 0}};
-	std::string rig_path, json_path, report_path, row_name, coverage_path, errors_path;
+	std::string rig_path, json_path, report_path, row_name, coverage_path, errors_path, missing_path,
+		recon_debug;
 	eval::EvalParams params;
 	optind = 1;
 	for (int opt; (opt = getopt_long(argc, argv, "h", options, nullptr)) != -1;) {
@@ -73,6 +80,12 @@ int evaluate_main(int argc, char **argv)
 		case 'e':
 			errors_path = optarg;
 			break;
+		case 'M':
+			missing_path = optarg;
+			break;
+		case 'D':
+			recon_debug = optarg;
+			break;
 		case 'w': {
 			char *end = nullptr;
 			params.completeness_mm = std::strtod(optarg, &end);
@@ -93,6 +106,10 @@ int evaluate_main(int argc, char **argv)
 	if (optind + 2 != argc) {
 		std::fprintf(stderr, "facescan evaluate: need MESH and CAPTURE_DIR\n");
 		evaluate_usage(stderr);
+		return 2;
+	}
+	if (missing_path.empty() != recon_debug.empty()) {
+		std::fprintf(stderr, "facescan evaluate: --missing and --recon-debug go together\n");
 		return 2;
 	}
 	const std::string mesh_path = argv[optind], dir = argv[optind + 1];
@@ -155,6 +172,43 @@ int evaluate_main(int argc, char **argv)
 		truth.uvs.clear();
 		truth.texture.release();
 		s = mesh_io::write_ply(coverage_path, truth);
+		if (!s.ok()) {
+			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+			return 1;
+		}
+	}
+	if (!missing_path.empty()) {
+		std::vector<eval::PairTrace> traces;
+		s = eval::read_pair_traces(recon_debug, &traces);
+		if (!s.ok()) {
+			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
+			return 1;
+		}
+		const std::vector<signed char> why = eval::attribute_missing(truth, r, cal.cameras, traces, params);
+		// One colour per reason (BGR); grey: counted and covered or not counted.
+		static const cv::Vec3b colours[eval::kMissReasons] = {
+			{255, 255, 255}, {0, 0, 0},	{90, 90, 90},	 {40, 40, 230}, {120, 60, 60},
+			{230, 40, 230},	 {0, 128, 255}, {0, 200, 255},	 {200, 120, 0}, {255, 0, 0},
+			{0, 255, 128},	 {128, 0, 128}, {0, 255, 255},	 {255, 255, 0}};
+		std::vector<int> count(eval::kMissReasons, 0);
+		int missed = 0;
+		truth.colours.assign(truth.positions.size(), cv::Vec3b(200, 200, 200));
+		for (size_t i = 0; i < why.size(); ++i)
+			if (why[i] >= 0 && why[i] < eval::kMissReasons) {
+				count[size_t(why[i])]++;
+				missed++;
+				truth.colours[i] = colours[size_t(why[i])];
+			}
+		std::printf("missed %d of %d counted truth points, by where they went:\n", missed, r.truth_counted);
+		for (int k = 0; k < eval::kMissReasons; ++k)
+			std::printf("  %-20s %7d  %5.1f %% of missed  %5.2f %% of counted\n", eval::miss_reason_name(k),
+				    count[size_t(k)], missed ? 100.0 * count[size_t(k)] / missed : 0.0,
+				    r.truth_counted ? 100.0 * count[size_t(k)] / r.truth_counted : 0.0);
+		recon::Mesh coloured;
+		coloured.positions = truth.positions;
+		coloured.triangles = truth.triangles;
+		coloured.colours = truth.colours;
+		s = mesh_io::write_ply(missing_path, coloured);
 		if (!s.ok()) {
 			std::fprintf(stderr, "facescan evaluate: %s\n", s.message().c_str());
 			return 1;

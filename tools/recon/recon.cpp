@@ -223,6 +223,11 @@ Status write_debug(const std::string &debug_dir, const std::string &capture_dir,
 		if (!s.ok())
 			return s;
 	}
+	for (const recon::DebugText &t : debug.texts) {
+		Status s = write_file_atomic(debug_dir + "/" + t.name, t.text.data(), t.text.size());
+		if (!s.ok())
+			return s;
+	}
 	for (const recon::DebugCloud &c : debug.clouds) {
 		recon::Mesh m;
 		m.positions = c.points;
