@@ -37,4 +37,18 @@ if [ $rc -eq 1 ] && grep -q "bad.drc" "$tmp/log" && [ ! -e "$tmp/out.ply" ]; the
 else echo "FAIL: corrupt input: exit $rc"; cat "$tmp/log"; fail=1; fi
 "$bin" convert "$tmp/a.ply" "$tmp/out.xyz" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: unknown extension is exit 2" || { echo "FAIL: unknown extension: exit $rc"; fail=1; }
+# No output may replace the input, its texture or another output (exit 2, inputs unchanged).
+cp "$tmp/b.drc" "$tmp/keep.drc" && printf 'not a real png' >"$tmp/keep_texture.png"
+sums=$(md5sum "$tmp/keep.drc" "$tmp/keep_texture.png")
+convert_refused() { # name expected-substring args...
+	name=$1 want=$2; shift 2
+	"$bin" convert "$@" >"$tmp/log" 2>&1; rc=$?
+	if [ $rc -ne 2 ] || ! grep -q -- "$want" "$tmp/log" || [ "$(md5sum "$tmp/keep.drc" "$tmp/keep_texture.png")" != "$sums" ]; then
+		echo "FAIL: $name: exit $rc (want 2), inputs kept?"; cat "$tmp/log"; fail=1
+	else echo "ok: $name: $(cat "$tmp/log")"; fi
+}
+convert_refused out-is-in "the input mesh" "$tmp/keep.drc" "$tmp/../$(basename "$tmp")/keep.drc"
+ln -s "$tmp/keep.drc" "$tmp/link.drc"
+convert_refused out-is-link-to-in "the input mesh" "$tmp/link.drc" "$tmp/keep.drc"
+convert_refused obj-texture-over-input-texture "the input's texture" --texture "$tmp/keep_texture.png" "$tmp/keep.drc" "$tmp/keep.obj"
 exit $fail

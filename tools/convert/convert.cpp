@@ -1,4 +1,5 @@
 // facescan convert: mesh format conversion between .drc .ply .glb .obj .stl (by the extensions).
+#include "facescan/outputs.hpp"
 #include "mesh_io/mesh_io.hpp"
 
 #include <getopt.h>
@@ -7,6 +8,8 @@
 #include <chrono>
 #include <cstdio>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace facescan::cli {
 
@@ -30,13 +33,6 @@ static bool exists(const std::string &p)
 {
 	struct stat st;
 	return stat(p.c_str(), &st) == 0;
-}
-
-static bool same_file(const std::string &a, const std::string &b)
-{
-	struct stat sa, sb;
-	return stat(a.c_str(), &sa) == 0 && stat(b.c_str(), &sb) == 0 && sa.st_dev == sb.st_dev &&
-	       sa.st_ino == sb.st_ino;
 }
 
 static std::string strip_ext(const std::string &p)
@@ -89,18 +85,22 @@ int convert_main(int argc, char **argv)
 			return 2;
 		}
 	}
-	// Every file the output consists of: none may be the input or its texture.
-	std::vector<std::string> outs = {out};
+	// Every file the output consists of: none may be the input, its texture or another output.
+	const std::string out_ext = out.substr(strip_ext(out).size());
+	std::vector<std::pair<std::string, const char *>> outs = {{out, out_ext.c_str()}};
 	if (fout == mesh_io::Format::obj)
-		outs = {out, strip_ext(out) + ".mtl", strip_ext(out) + "_texture.png"};
+		outs = {{out, out_ext.c_str()}, {strip_ext(out) + ".mtl", ".mtl"}, {strip_ext(out) + "_texture.png", ".png"}};
 	if (texture.empty() && (fin == mesh_io::Format::drc || fin == mesh_io::Format::ply) &&
 	    exists(strip_ext(in) + ".png"))
 		texture = strip_ext(in) + ".png";
-	for (const std::string &o : outs)
-		if (o == in || same_file(o, in) || (!texture.empty() && (o == texture || same_file(o, texture)))) {
-			std::fprintf(stderr, "facescan convert: '%s' would overwrite the input\n", o.c_str());
-			return 2;
-		}
+	std::vector<InputFile> inputs = {{in, "the input mesh"}};
+	if (!texture.empty())
+		inputs.push_back({texture, "the input's texture"});
+	std::string why;
+	if (!check_outputs(inputs, outs, &why)) {
+		std::fprintf(stderr, "facescan convert: %s\n", why.c_str());
+		return 2;
+	}
 
 	recon::Mesh mesh;
 	const auto t0 = std::chrono::steady_clock::now();

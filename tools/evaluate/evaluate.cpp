@@ -1,6 +1,7 @@
 // facescan evaluate: accuracy of a reconstructed mesh against a simulated capture set's truth.
 #include "capture/capture_set.hpp"
 #include "eval/eval.hpp"
+#include "facescan/outputs.hpp"
 #include "mesh_io/mesh_io.hpp"
 #include "sim/sim.hpp"
 
@@ -24,7 +25,8 @@ static void evaluate_usage(FILE *out)
 		     "duplicates count once) to the true surface (RMS, median, p95,\n"
 		     "max, mm) and completeness: the fraction of true surface points seen by >= 2 cameras\n"
 		     "and lit by a projector (through its slide mask, where the set records one) that\n"
-		     "lie within 1 mm of the mesh.\n"
+		     "lie within 1 mm of the mesh. No output may name the mesh, a file of the set or of\n"
+		     "--recon-debug, or another output, and each must end in its extension (exit 2).\n"
 		     "  --rig FILE       the simulator rig the set was rendered with (projector poses);\n"
 		     "                   default: CAPTURE_DIR/ground_truth_projectors.yaml (written by\n"
 		     "                   facescan simulate), else the built-in default rig\n"
@@ -113,6 +115,30 @@ int evaluate_main(int argc, char **argv)
 		return 2;
 	}
 	const std::string mesh_path = argv[optind], dir = argv[optind + 1];
+	// What evaluate reads stays as it was: no output may name an input or another output.
+	std::vector<InputFile> inputs = capture_set_inputs(dir);
+	inputs.push_back({mesh_path, "the mesh being evaluated"});
+	if (!rig_path.empty())
+		inputs.push_back({rig_path, "the rig (--rig)"});
+	if (!report_path.empty())
+		inputs.push_back({report_path, "the recon report (--report)"});
+	if (!recon_debug.empty())
+		for (InputFile &f : directory_inputs(recon_debug, "in the recon debug directory (--recon-debug)"))
+			inputs.push_back(std::move(f));
+	std::vector<std::pair<std::string, const char *>> outputs;
+	if (!json_path.empty())
+		outputs.push_back({json_path, ".json"});
+	if (!errors_path.empty())
+		outputs.push_back({errors_path, ".ply"});
+	if (!coverage_path.empty())
+		outputs.push_back({coverage_path, ".ply"});
+	if (!missing_path.empty())
+		outputs.push_back({missing_path, ".ply"});
+	std::string why;
+	if (!check_outputs(inputs, outputs, &why)) {
+		std::fprintf(stderr, "facescan evaluate: %s\n", why.c_str());
+		return 2;
+	}
 	recon::Mesh mesh, truth;
 	const bool drc = mesh_path.size() > 4 && mesh_path.compare(mesh_path.size() - 4, 4, ".drc") == 0;
 	Status s = drc ? mesh_io::read_draco(mesh_path, &mesh) : mesh_io::read_ply(mesh_path, &mesh);

@@ -1,5 +1,6 @@
 // facescan recon: capture set → Draco face mesh (+ texture PNG, optional PLY and JSON report).
 #include "capture/capture_set.hpp"
+#include "facescan/outputs.hpp"
 #include "mesh_io/mesh_io.hpp"
 #include "pattern/pattern.hpp"
 #include "recon/pipeline.hpp"
@@ -7,7 +8,6 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include <dirent.h>
 #include <getopt.h>
 #include <malloc.h>
 #include <sys/resource.h>
@@ -54,110 +54,6 @@ static std::string texture_path(const std::string &drc)
 {
 	const size_t n = drc.size();
 	return n > 4 && drc.compare(n - 4, 4, ".drc") == 0 ? drc.substr(0, n - 4) + ".png" : drc + ".png";
-}
-
-static bool ends_with(const std::string &s, const char *suffix)
-{
-	const size_t n = std::strlen(suffix);
-	return s.size() >= n && s.compare(s.size() - n, n, suffix) == 0;
-}
-
-// Where a path's directory entry lives: the real path of its directory plus its own name. A
-// rename onto the path replaces exactly that entry (a symlink there is replaced, not followed).
-static bool entry_of(const std::string &path, std::string *ret)
-{
-	const size_t slash = path.find_last_of('/');
-	const std::string dir = slash == std::string::npos ? "." : (slash == 0 ? "/" : path.substr(0, slash));
-	const std::string name = slash == std::string::npos ? path : path.substr(slash + 1);
-	if (name.empty() || name == "." || name == "..")
-		return false;
-	char *real = realpath(dir.c_str(), nullptr);
-	if (!real)
-		return false;
-	*ret = std::string(real) + (std::strcmp(real, "/") == 0 ? "" : "/") + name;
-	std::free(real);
-	return true;
-}
-
-// Whether `name` is one of a capture set's own files (docs/capture-format.md).
-static bool is_capture_file(const std::string &name)
-{
-	if (name == "calibration.yaml" || name == "capture.json" || name == "ground_truth.ply" ||
-	    name == "ground_truth_projectors.yaml")
-		return true;
-	size_t i = 3;
-	if (name.compare(0, 3, "cam") != 0 || name.size() <= i || !std::isdigit((unsigned char)name[i]))
-		return false;
-	while (i < name.size() && std::isdigit((unsigned char)name[i]))
-		i++;
-	const std::string rest = name.substr(i);
-	return rest == ".png" || rest == "_texture.png";
-}
-
-// Refuses outputs that would replace an input or each other: each output must have its own
-// extension, a directory that exists, and be neither a file of the capture set (by its
-// directory entry, by where an input's symlink points, or by inode) nor another output.
-static bool check_outputs(const std::string &capture_dir, const std::vector<std::pair<std::string, const char *>> &outs,
-			  std::string *ret_why)
-{
-	struct Input {
-		std::string entry, target;
-		dev_t dev = 0;
-		ino_t ino = 0;
-	};
-	std::vector<Input> inputs;
-	if (DIR *d = opendir(capture_dir.c_str())) {
-		while (dirent *e = readdir(d)) {
-			if (!is_capture_file(e->d_name))
-				continue;
-			Input in;
-			const std::string path = capture_dir + "/" + e->d_name;
-			if (!entry_of(path, &in.entry))
-				continue;
-			if (char *t = realpath(path.c_str(), nullptr)) {
-				in.target = t;
-				std::free(t);
-			}
-			struct stat st;
-			if (stat(path.c_str(), &st) == 0) {
-				in.dev = st.st_dev;
-				in.ino = st.st_ino;
-			}
-			inputs.push_back(in);
-		}
-		closedir(d);
-	}
-	std::vector<std::string> seen;
-	for (const auto &[path, ext] : outs) {
-		if (!ends_with(path, ext) || path.size() == std::strlen(ext) || ends_with(path, (std::string("/") + ext).c_str())) {
-			*ret_why = path + ": must be a file name ending in " + ext;
-			return false;
-		}
-		std::string entry;
-		if (!entry_of(path, &entry)) {
-			*ret_why = path + ": its directory does not exist";
-			return false;
-		}
-		struct stat st;
-		const bool exists = stat(path.c_str(), &st) == 0;
-		if (exists && !S_ISREG(st.st_mode)) {
-			*ret_why = path + ": exists and is not a regular file";
-			return false;
-		}
-		for (const Input &in : inputs)
-			if (entry == in.entry || entry == in.target ||
-			    (exists && st.st_dev == in.dev && st.st_ino == in.ino)) {
-				*ret_why = path + ": is an input of the capture set (" + in.entry + "); choose another name";
-				return false;
-			}
-		for (const std::string &other : seen)
-			if (entry == other) {
-				*ret_why = path + ": names the same file as another output";
-				return false;
-			}
-		seen.push_back(entry);
-	}
-	return true;
 }
 
 // What the operator must hear about a reconstruction that succeeded but is suspect. Warned,
@@ -304,7 +200,7 @@ int recon_main(int argc, char **argv)
 	if (!report_path.empty())
 		outs.push_back({report_path, ".json"});
 	std::string why;
-	if (!check_outputs(dir, outs, &why)) {
+	if (!check_outputs(capture_set_inputs(dir), outs, &why)) {
 		std::fprintf(stderr, "facescan recon: %s\n", why.c_str());
 		return 2;
 	}
