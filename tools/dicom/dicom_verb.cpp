@@ -1,6 +1,7 @@
 // facescan dicom: a mesh as an Encapsulated STL instance, and C-STORE through the DICOM spool.
 #include "daemon/patient_id.hpp"
 #include "dicom/dicom.hpp"
+#include "facescan/outputs.hpp"
 #include "mesh_io/mesh_io.hpp"
 
 #include "capture/capture_set.hpp"
@@ -29,7 +30,8 @@ static void dicom_usage(FILE *out)
 		     "        there by C-STORE, oldest first. Exit 0: all sent; 3: the PACS did not\n"
 		     "        take them (they wait in DIR for the next send); 1: other failure.\n"
 		     "show    prints the identity, patient and document of an instance; --document\n"
-		     "        writes the encapsulated document (the STL) to OUT.\n");
+		     "        writes the encapsulated document (the STL) to OUT.\n"
+		     "No output may name the input (exit 2).\n");
 }
 
 // "AE@HOST:PORT" → Pacs.
@@ -89,9 +91,14 @@ static int export_main(int argc, char **argv)
 		std::fprintf(stderr, "facescan dicom export: %s\n", s.message().c_str());
 		return 2;
 	}
+	const std::string out = argv[optind + 1];
+	std::string why;
+	if (!check_outputs({{argv[optind], "the mesh being exported"}}, {{out, ".dcm"}}, &why)) {
+		std::fprintf(stderr, "facescan dicom export: %s\n", why.c_str());
+		return 2;
+	}
 	recon::Mesh mesh;
 	s = mesh_io::read_mesh(argv[optind], units, "", &mesh);
-	const std::string out = argv[optind + 1];
 	std::string stl, dcm;
 	dicom::Instance inst;
 	if (s.ok())
@@ -180,6 +187,12 @@ static int show_main(int argc, char **argv)
 	}
 	if (optind + 1 != argc) {
 		std::fprintf(stderr, "facescan dicom show: need FILE.dcm\n");
+		return 2;
+	}
+	// Any name for the document (its type is in the instance), but never the instance itself.
+	std::string why;
+	if (!doc_out.empty() && !check_outputs({{argv[optind], "the instance being shown"}}, {{doc_out, ""}}, &why)) {
+		std::fprintf(stderr, "facescan dicom show: %s\n", why.c_str());
 		return 2;
 	}
 	std::string bytes;

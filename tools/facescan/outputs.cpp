@@ -103,7 +103,7 @@ bool check_outputs(const std::vector<InputFile> &inputs,
 	std::vector<std::string> seen;
 	for (const auto &[path, ext] : outputs) {
 		if (!ends_with(path, ext) || path.size() == std::strlen(ext) || ends_with(path, std::string("/") + ext)) {
-			*ret_why = path + ": must be a file name ending in " + ext;
+			*ret_why = path + ": must be a file name" + (*ext ? std::string(" ending in ") + ext : "");
 			return false;
 		}
 		std::string entry;
