@@ -3,6 +3,7 @@
 // writes the file atomically only when the calibration succeeded.
 #include "calib/calib.hpp"
 #include "capture/capture_set.hpp"
+#include "facescan/outputs.hpp"
 
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -259,6 +260,17 @@ int calibrate_main(int argc, char **argv)
 	st = pairs.empty() ? read_dir(dir, &table) : read_pairs(pairs, &table);
 	if (!st.ok())
 		return failure(st.message());
+	// The calibration never replaces an image or the pair list it was made from.
+	std::vector<InputFile> inputs;
+	if (!pairs.empty())
+		inputs.push_back({pairs, "the pair list"});
+	for (const std::vector<std::string> &pose : table)
+		for (const std::string &image : pose)
+			if (!image.empty())
+				inputs.push_back({image, "a board image"});
+	std::string why;
+	if (!check_outputs(inputs, {{output, ".yaml"}}, &why))
+		return bad_usage(why);
 	const size_t poses = table.size(), cams = table[0].size();
 	if (cams < 2)
 		return failure("images of at least 2 cameras are needed (found camera 0 only)");
