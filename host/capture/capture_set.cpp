@@ -353,6 +353,23 @@ Status read_regular_file(const std::string &path, size_t max_bytes, std::string 
 	return {};
 }
 
+Status check_regular_file(const std::string &path, size_t max_bytes)
+{
+	struct stat st;
+	if (stat(path.c_str(), &st) != 0) {
+		int e = errno;
+		if (e == ENOENT)
+			return Status::error(ENOENT, path + ": missing");
+		return Status::error(e, path + ": cannot open: " + errno_text(e));
+	}
+	if (!S_ISREG(st.st_mode))
+		return Status::error(EINVAL, path + ": not a regular file");
+	if (static_cast<unsigned long long>(st.st_size) > max_bytes)
+		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) + " bytes, more than the " +
+						    std::to_string(max_bytes) + " this file may have");
+	return {};
+}
+
 Status write_file_atomic(const std::string &path, const void *data, size_t size)
 {
 	std::string dir = dir_of(path);

@@ -67,6 +67,9 @@ Status write_capture_set(const std::string &dir, const CaptureSet &set);
 /// regular file, so a FIFO or a device under that name cannot hang the reader nor a huge file
 /// balloon it. -ENOENT missing, -EINVAL not a regular file, -EFBIG too large, -errno.
 Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret);
+/// The same checks without reading (never opens: a FIFO cannot block it), for readers that open
+/// the file themselves (OpenCV's imread, assimp).
+Status check_regular_file(const std::string &path, size_t max_bytes);
 /// Writes bytes to `path` atomically: temp file in the same directory, fsync, rename, fsync dir.
 Status write_file_atomic(const std::string &path, const void *data, size_t size);
 /// Encodes an image by the path's extension and writes it atomically.

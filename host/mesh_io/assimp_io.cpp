@@ -307,7 +307,8 @@ Status read_obj(const std::string &path, Units units, recon::Mesh *ret_mesh)
 		return s;
 	if (!tex.empty() && !mesh.uvs.empty()) {
 		const std::string tex_path = tex[0] == '/' ? tex : dir_of(path) + tex;
-		if (access(tex_path.c_str(), R_OK) == 0) // imread would log a warning for a missing file
+		// imread would log a warning for a missing file and wait on a FIFO.
+		if (access(tex_path.c_str(), R_OK) == 0 && check_regular_input(tex_path).ok())
 			mesh.texture = cv::imread(tex_path, cv::IMREAD_COLOR);
 		if (mesh.texture.empty())
 			return Status::error(-EINVAL, path + ": its texture '" + tex_path + "' is missing or unreadable");

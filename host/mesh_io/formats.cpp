@@ -52,6 +52,12 @@ Status read_mesh(const std::string &path, Units units, const std::string &textur
 	if (!s.ok())
 		return s;
 	recon::Mesh mesh;
+	// OBJ, STL and the texture are opened by assimp and imread, which would wait on a FIFO.
+	s = check_regular_input(path);
+	if (s.ok() && !texture_png.empty() && (f == Format::drc || f == Format::ply))
+		s = check_regular_input(texture_png);
+	if (!s.ok())
+		return s;
 	switch (f) {
 	case Format::drc: s = read_draco(path, &mesh); break;
 	case Format::ply:

@@ -13,18 +13,12 @@ namespace facescan::mesh_io {
 
 Status read_file_bytes(const std::string &path, std::string *ret_bytes)
 {
-	std::ifstream in(path, std::ios::binary);
-	if (!in) {
-		const int err = errno ? errno : ENOENT;
-		return Status::error(err == ENOENT ? -ENOENT : -EIO,
-				     path + ": cannot open: " + std::strerror(err));
-	}
-	std::ostringstream ss;
-	ss << in.rdbuf();
-	if (in.bad())
-		return Status::error(-EIO, path + ": read error");
-	*ret_bytes = ss.str();
-	return {};
+	return read_regular_file(path, kMaxInputFileBytes, ret_bytes);
+}
+
+Status check_regular_input(const std::string &path)
+{
+	return check_regular_file(path, kMaxInputFileBytes);
 }
 
 Status write_draco(const std::string &path, const recon::Mesh &mesh, const DracoOptions &options)

@@ -51,8 +51,15 @@ Status write_draco(const std::string &path, const recon::Mesh &mesh, const Draco
 Status read_draco(const std::string &path, recon::Mesh *ret_mesh);
 Status write_ply(const std::string &path, const recon::Mesh &mesh);
 Status read_ply(const std::string &path, recon::Mesh *ret_mesh);
-/// Reads a whole file into memory (-ENOENT missing, -EIO unreadable).
+/// The largest file a mesh reader takes (a 5M-vertex binary PLY is ~150 MB).
+constexpr size_t kMaxInputFileBytes = size_t(1) << 30;
+/// Reads a whole regular file of at most kMaxInputFileBytes into memory (read_regular_file:
+/// a FIFO or device is refused, never waited on): -ENOENT missing, -EINVAL not a regular file,
+/// -EFBIG too large, -errno.
 Status read_file_bytes(const std::string &path, std::string *ret_bytes);
+/// The same checks without reading, for the readers that open the file themselves (assimp,
+/// OpenCV's imread).
+Status check_regular_input(const std::string &path);
 
 /// glTF 2.0 binary: one mesh, one primitive compressed with KHR_draco_mesh_compression
 /// (required extension), positions in metres (glTF's unit; recon::Mesh is mm, so ×0.001 on

@@ -20,4 +20,9 @@ refused() { # name expected-substring args...
 refused over-image "ending in .yaml" --dir "$tmp" -o "$tmp/pose0_cam0.png"
 refused over-pair-list "the pair list" --pairs "$tmp/pairs.yaml" -o "$tmp/pairs.yaml"
 refused over-image-by-symlink "a board image" --dir "$tmp" -o "$tmp/link.yaml"
+# A FIFO among the board images is skipped with its reason, never waited on.
+mkdir "$tmp/fifo" && mkfifo "$tmp/fifo/pose0_cam0.png" && printf 'an image' >"$tmp/fifo/pose0_cam1.png"
+timeout 20 "$bin" calibrate --dir "$tmp/fifo" -o "$tmp/c.yaml" --board 9x6 --square-mm 20 >"$tmp/log" 2>&1; rc=$?
+if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: fifo image skipped, exit 1"
+else echo "FAIL: fifo image: exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
 exit $fail

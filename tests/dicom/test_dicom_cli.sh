@@ -23,4 +23,12 @@ refused export-not-dcm "ending in .dcm" export "$tmp/face.ply" "$tmp/out.ply" --
 refused show-document-over-instance "the instance being shown" show "$tmp/a.dcm" --document "$tmp/a.dcm"
 "$bin" dicom show "$tmp/a.dcm" --document "$tmp/a.stl" >/dev/null && [ -s "$tmp/a.stl" ] &&
 	echo "ok: show --document writes the STL beside it" || { echo "FAIL: show --document"; fail=1; }
+# A FIFO as the mesh or the instance is refused, never waited on.
+mkfifo "$tmp/fifo.ply" "$tmp/fifo.dcm"
+for args in "export $tmp/fifo.ply $tmp/f.dcm --patient P-1" "show $tmp/fifo.dcm"; do
+	# shellcheck disable=SC2086
+	timeout 20 "$bin" dicom $args >"$tmp/log" 2>&1; rc=$?
+	if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: fifo: $(cat "$tmp/log")"
+	else echo "FAIL: fifo ($args): exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
+done
 exit $fail

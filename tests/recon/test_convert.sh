@@ -51,4 +51,12 @@ convert_refused out-is-in "the input mesh" "$tmp/keep.drc" "$tmp/../$(basename "
 ln -s "$tmp/keep.drc" "$tmp/link.drc"
 convert_refused out-is-link-to-in "the input mesh" "$tmp/link.drc" "$tmp/keep.drc"
 convert_refused obj-texture-over-input-texture "the input's texture" --texture "$tmp/keep_texture.png" "$tmp/keep.drc" "$tmp/keep.obj"
+# A FIFO (or device) as the input or its texture is refused, never waited on.
+mkfifo "$tmp/fifo.drc" "$tmp/fifo_texture.png"
+for args in "$tmp/fifo.drc $tmp/f.ply" "--texture $tmp/fifo_texture.png $tmp/keep.drc $tmp/f.obj"; do
+	# shellcheck disable=SC2086
+	timeout 20 "$bin" convert $args >"$tmp/log" 2>&1; rc=$?
+	if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: fifo: $(cat "$tmp/log")"
+	else echo "FAIL: fifo ($args): exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
+done
 exit $fail

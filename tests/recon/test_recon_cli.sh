@@ -116,4 +116,9 @@ eval_refused json-named-ply "ending in .json" --json "$tmp/e.ply"
 # Bad arguments are exit 2.
 "$bin" recon "$tmp/nocal" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: missing -o is exit 2" || { echo "FAIL: missing -o: exit $rc, want 2"; fail=1; }
+# evaluate: a FIFO as the mesh is refused, never waited on.
+mkfifo "$tmp/fifo.drc"
+timeout 20 "$bin" evaluate "$tmp/fifo.drc" "$tmp/own" >"$tmp/log" 2>&1; rc=$?
+if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: evaluate fifo: $(cat "$tmp/log")"
+else echo "FAIL: evaluate fifo mesh: exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
 exit $fail

@@ -71,6 +71,8 @@ int failure(const std::string &message)
 // images[pose][camera]: a path, or empty when that camera has no image of the pose.
 using ImageTable = std::vector<std::vector<std::string>>;
 
+constexpr size_t kMaxBoardImageBytes = size_t(256) << 20;
+
 Status read_pairs(const std::string &list, ImageTable *ret)
 {
 	std::ifstream in(list);
@@ -283,6 +285,11 @@ int calibrate_main(int argc, char **argv)
 			const size_t p = size_t(k) / cams, c = size_t(k) % cams;
 			if (table[p][c].empty()) {
 				views[p][c].reason = "no image";
+				continue;
+			}
+			// imread would wait forever on a FIFO and decode any size.
+			if (!check_regular_file(table[p][c], kMaxBoardImageBytes).ok()) {
+				views[p][c].reason = "not a regular file of at most 256 MB";
 				continue;
 			}
 			const cv::Mat img = cv::imread(table[p][c], cv::IMREAD_GRAYSCALE);
