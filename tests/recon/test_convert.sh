@@ -37,26 +37,4 @@ if [ $rc -eq 1 ] && grep -q "bad.drc" "$tmp/log" && [ ! -e "$tmp/out.ply" ]; the
 else echo "FAIL: corrupt input: exit $rc"; cat "$tmp/log"; fail=1; fi
 "$bin" convert "$tmp/a.ply" "$tmp/out.xyz" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: unknown extension is exit 2" || { echo "FAIL: unknown extension: exit $rc"; fail=1; }
-# No output may replace the input, its texture or another output (exit 2, inputs unchanged).
-cp "$tmp/b.drc" "$tmp/keep.drc" && printf 'not a real png' >"$tmp/keep_texture.png"
-sums=$(md5sum "$tmp/keep.drc" "$tmp/keep_texture.png")
-convert_refused() { # name expected-substring args...
-	name=$1 want=$2; shift 2
-	"$bin" convert "$@" >"$tmp/log" 2>&1; rc=$?
-	if [ $rc -ne 2 ] || ! grep -q -- "$want" "$tmp/log" || [ "$(md5sum "$tmp/keep.drc" "$tmp/keep_texture.png")" != "$sums" ]; then
-		echo "FAIL: $name: exit $rc (want 2), inputs kept?"; cat "$tmp/log"; fail=1
-	else echo "ok: $name: $(cat "$tmp/log")"; fi
-}
-convert_refused out-is-in "the input mesh" "$tmp/keep.drc" "$tmp/../$(basename "$tmp")/keep.drc"
-ln -s "$tmp/keep.drc" "$tmp/link.drc"
-convert_refused out-is-link-to-in "the input mesh" "$tmp/link.drc" "$tmp/keep.drc"
-convert_refused obj-texture-over-input-texture "the input's texture" --texture "$tmp/keep_texture.png" "$tmp/keep.drc" "$tmp/keep.obj"
-# A FIFO (or device) as the input or its texture is refused, never waited on.
-mkfifo "$tmp/fifo.drc" "$tmp/fifo_texture.png"
-for args in "$tmp/fifo.drc $tmp/f.ply" "--texture $tmp/fifo_texture.png $tmp/keep.drc $tmp/f.obj"; do
-	# shellcheck disable=SC2086
-	timeout 20 "$bin" convert $args >"$tmp/log" 2>&1; rc=$?
-	if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: fifo: $(cat "$tmp/log")"
-	else echo "FAIL: fifo ($args): exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
-done
 exit $fail

@@ -90,35 +90,7 @@ expect_refused no-such-dir "does not exist" -o "$tmp/nowhere/m.drc"
 ln "$tmp/own/capture.json" "$tmp/hard.json"
 expect_refused via-hardlink "input of the capture set" -o "$tmp/m.drc" --report "$tmp/hard.json"
 
-# facescan evaluate keeps the same rule (one check, tools/facescan/outputs.cpp): its outputs
-# never replace the mesh it scores, the set, the recon debug files it reads, or each other.
-printf 'ply\nformat ascii 1.0\nend_header\n' >"$tmp/mesh.ply"
-mkdir "$tmp/dbg" && echo 1 >"$tmp/dbg/pair0_dense.ply"
-(cd "$tmp" && md5sum mesh.ply dbg/pair0_dense.ply >"$tmp/eval.md5")
-eval_refused() { # name expected-substring args...
-	name=$1 want=$2; shift 2
-	"$bin" evaluate "$tmp/mesh.ply" "$tmp/own" "$@" >"$tmp/log" 2>&1
-	rc=$?
-	if [ $rc -ne 2 ]; then echo "FAIL: evaluate $name: exit $rc, want 2"; cat "$tmp/log"; fail=1; return; fi
-	if ! grep -q -- "$want" "$tmp/log"; then echo "FAIL: evaluate $name: message does not say '$want':"; cat "$tmp/log"; fail=1; return; fi
-	if ! (cd "$tmp/own" && md5sum --quiet -c "$tmp/own.md5") || ! (cd "$tmp" && md5sum --quiet -c "$tmp/eval.md5"); then
-		echo "FAIL: evaluate $name: an input changed"; fail=1; return
-	fi
-	echo "ok: evaluate $name: $(head -1 "$tmp/log")"
-}
-eval_refused errors-over-mesh "the mesh being evaluated" --errors "$tmp/mesh.ply"
-eval_refused coverage-over-truth "input of the capture set" --coverage "$tmp/own/ground_truth.ply"
-eval_refused json-over-meta "input of the capture set" --json "$tmp/own/capture.json"
-eval_refused two-outputs-one-file "another output" --errors "$tmp/e.ply" --coverage "$tmp/e.ply"
-eval_refused missing-over-debug "recon debug directory" --missing "$tmp/dbg/pair0_dense.ply" --recon-debug "$tmp/dbg"
-eval_refused json-named-ply "ending in .json" --json "$tmp/e.ply"
-
 # Bad arguments are exit 2.
 "$bin" recon "$tmp/nocal" >/dev/null 2>&1; rc=$?
 [ $rc -eq 2 ] && echo "ok: missing -o is exit 2" || { echo "FAIL: missing -o: exit $rc, want 2"; fail=1; }
-# evaluate: a FIFO as the mesh is refused, never waited on.
-mkfifo "$tmp/fifo.drc"
-timeout 20 "$bin" evaluate "$tmp/fifo.drc" "$tmp/own" >"$tmp/log" 2>&1; rc=$?
-if [ $rc -eq 1 ] && grep -q "not a regular file" "$tmp/log"; then echo "ok: evaluate fifo: $(cat "$tmp/log")"
-else echo "FAIL: evaluate fifo mesh: exit $rc (124 = hung), want 1"; cat "$tmp/log"; fail=1; fi
 exit $fail
