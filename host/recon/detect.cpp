@@ -58,8 +58,7 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 		       cv::Rect(0, 0, bgr.cols, bgr.rows);
 		// find_squares derives its first window from the image's size: the frame's, not the crop's.
 		SquareParams plane_squares = params.squares;
-		if (plane_squares.first_window_px <= 0)
-			plane_squares.first_window_px = std::max(15, std::min(bgr.cols, bgr.rows) / 20);
+		plane_squares.first_window_px = first_window_px(params.squares, bgr.size());
 		std::vector<cv::Mat> planes;
 		if (letter_planes(bgr(face), params.gamma, colours, params.planes.min_share, &planes).ok()) {
 			CameraDetections again;

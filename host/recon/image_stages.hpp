@@ -67,19 +67,14 @@ struct SquareBlob {
 	double outside = 0;	// median intensity of the gap around it
 };
 
-/// How much of what the threshold lit became squares: pixels above the final local-mean threshold,
-/// and the kept squares' pixels.
-struct SquareCoverage {
-	double lit_px = 0, square_px = 0;
-};
-
 /// Finds the pattern's squares on the intensity plane: local-mean threshold, blob filtering,
 /// then a per-square threshold at the midpoint of its own inside and gap levels. Fills centroid
-/// (area centroid) and area of each Square; blobs[i] belongs to squares[i]; `ret_coverage`, if
-/// given, gets the coverage.
+/// (area centroid) and area of each Square; blobs[i] belongs to squares[i].
 Status find_squares(const cv::Mat &intensity, const SquareParams &params,
-		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs,
-		    SquareCoverage *ret_coverage = nullptr);
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs);
+/// The first-pass window find_squares uses on a frame of `frame` size: params.first_window_px,
+/// or derived from the frame (a crop searched on its own must pass the whole frame's).
+int first_window_px(const SquareParams &params, cv::Size frame);
 
 // ---- stage 5: force-field corners + sub-pixel refinement -------------------------------------
 

@@ -192,22 +192,23 @@ double median_square_area(const std::vector<Square> &squares, double lo, double 
 
 } // namespace
 
+int first_window_px(const SquareParams &params, cv::Size frame)
+{
+	return params.first_window_px > 0 ? params.first_window_px : std::max(15, std::min(frame.width, frame.height) / 20);
+}
+
 Status find_squares(const cv::Mat &intensity, const SquareParams &params,
-		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs,
-		    SquareCoverage *ret_coverage)
+		    std::vector<Square> *ret_squares, std::vector<SquareBlob> *ret_blobs)
 {
 	if (intensity.empty() || intensity.type() != CV_32F)
 		return Status::error(EINVAL, "find_squares needs a CV_32F intensity image");
-	int window = params.first_window_px > 0 ? params.first_window_px
-						: std::max(15, std::min(intensity.cols, intensity.rows) / 20);
+	const int window = first_window_px(params, intensity.size());
 	cv::Mat labels;
 	cv::Mat mask = local_mean_mask(intensity, window);
 	std::vector<Component> comps = components(mask, params.min_area_px, &labels);
 	if (comps.empty()) {
 		ret_squares->clear();
 		ret_blobs->clear();
-		if (ret_coverage)
-			*ret_coverage = SquareCoverage{double(cv::countNonZero(mask)), 0};
 		return {};
 	}
 	double side = std::sqrt(median_area(comps));
@@ -277,13 +278,6 @@ Status find_squares(const cv::Mat &intensity, const SquareParams &params,
 			keep_sq.push_back(add_sq[k]);
 			keep_blob.push_back(std::move(add_blob[k]));
 		}
-	}
-	if (ret_coverage) {
-		SquareCoverage cov;
-		cov.lit_px = cv::countNonZero(mask);
-		for (const Square &s : keep_sq)
-			cov.square_px += s.area;
-		*ret_coverage = cov;
 	}
 	*ret_squares = std::move(keep_sq);
 	*ret_blobs = std::move(keep_blob);
