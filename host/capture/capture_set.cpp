@@ -305,6 +305,17 @@ Status read_size(const cv::FileStorage &fs, const std::string &file, const std::
 	return {};
 }
 
+// What read_regular_file and check_regular_file accept: a regular file of at most max_bytes.
+Status regular_and_small(const std::string &path, const struct stat &st, size_t max_bytes)
+{
+	if (!S_ISREG(st.st_mode))
+		return Status::error(EINVAL, path + ": not a regular file");
+	if (static_cast<unsigned long long>(st.st_size) > max_bytes)
+		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) + " bytes, more than the " +
+						    std::to_string(max_bytes) + " this file may have");
+	return {};
+}
+
 } // namespace
 
 Status read_regular_file(const std::string &path, size_t max_bytes, std::string *ret)
@@ -322,15 +333,9 @@ Status read_regular_file(const std::string &path, size_t max_bytes, std::string 
 		close(fd);
 		return Status::error(e, path + ": cannot stat: " + errno_text(e));
 	}
-	if (!S_ISREG(st.st_mode)) {
+	if (Status verdict = regular_and_small(path, st, max_bytes); !verdict.ok()) {
 		close(fd);
-		return Status::error(EINVAL, path + ": not a regular file");
-	}
-	if (static_cast<unsigned long long>(st.st_size) > max_bytes) {
-		close(fd);
-		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) +
-						    " bytes, more than the " + std::to_string(max_bytes) +
-						    " this file may have");
+		return verdict;
 	}
 	std::string text(size_t(st.st_size), '\0');
 	size_t got = 0;
@@ -362,12 +367,7 @@ Status check_regular_file(const std::string &path, size_t max_bytes)
 			return Status::error(ENOENT, path + ": missing");
 		return Status::error(e, path + ": cannot open: " + errno_text(e));
 	}
-	if (!S_ISREG(st.st_mode))
-		return Status::error(EINVAL, path + ": not a regular file");
-	if (static_cast<unsigned long long>(st.st_size) > max_bytes)
-		return Status::error(EFBIG, path + ": " + std::to_string(st.st_size) + " bytes, more than the " +
-						    std::to_string(max_bytes) + " this file may have");
-	return {};
+	return regular_and_small(path, st, max_bytes);
 }
 
 Status write_file_atomic(const std::string &path, const void *data, size_t size)
