@@ -191,7 +191,7 @@ static int show_main(int argc, char **argv)
 	}
 	// Any name for the document (its type is in the instance), but never the instance itself.
 	std::string why;
-	if (!doc_out.empty() && !check_outputs({{argv[optind], "the instance being shown"}}, {{doc_out, ""}}, &why)) {
+	if (!check_outputs({{argv[optind], "the instance being shown"}}, {{doc_out, ""}}, &why)) {
 		std::fprintf(stderr, "facescan dicom show: %s\n", why.c_str());
 		return 2;
 	}

@@ -125,17 +125,10 @@ int evaluate_main(int argc, char **argv)
 	if (!recon_debug.empty())
 		for (InputFile &f : directory_inputs(recon_debug, "in the recon debug directory (--recon-debug)"))
 			inputs.push_back(std::move(f));
-	std::vector<std::pair<std::string, const char *>> outputs;
-	if (!json_path.empty())
-		outputs.push_back({json_path, ".json"});
-	if (!errors_path.empty())
-		outputs.push_back({errors_path, ".ply"});
-	if (!coverage_path.empty())
-		outputs.push_back({coverage_path, ".ply"});
-	if (!missing_path.empty())
-		outputs.push_back({missing_path, ".ply"});
 	std::string why;
-	if (!check_outputs(inputs, outputs, &why)) {
+	if (!check_outputs(inputs,
+			   {{json_path, ".json"}, {errors_path, ".ply"}, {coverage_path, ".ply"}, {missing_path, ".ply"}},
+			   &why)) {
 		std::fprintf(stderr, "facescan evaluate: %s\n", why.c_str());
 		return 2;
 	}

@@ -102,6 +102,8 @@ bool check_outputs(const std::vector<InputFile> &inputs,
 	}
 	std::vector<std::string> seen;
 	for (const auto &[path, ext] : outputs) {
+		if (path.empty())
+			continue; // not asked for
 		if (!ends_with(path, ext) || path.size() == std::strlen(ext) || ends_with(path, std::string("/") + ext)) {
 			*ret_why = path + ": must be a file name" + (*ext ? std::string(" ending in ") + ext : "");
 			return false;

@@ -20,8 +20,8 @@ std::vector<InputFile> capture_set_inputs(const std::string &dir);
 /// Every entry directly inside `dir` (a directory a verb reads whole), with `role`.
 std::vector<InputFile> directory_inputs(const std::string &dir, const std::string &role);
 
-/// Refuses outputs (path, required extension; "" = any) that would replace an input or each
-/// other: each must end in its extension, be in a directory that exists, not be a non-regular file, and be
+/// Refuses outputs (path, required extension; "" = any; an empty path is an output not asked
+/// for and is skipped) that would replace an input or each other: each must end in its extension, be in a directory that exists, not be a non-regular file, and be
 /// neither an input (by its directory entry, by where an input's symlink points, or by inode)
 /// nor another output. False with the reason in *ret_why.
 bool check_outputs(const std::vector<InputFile> &inputs,

@@ -192,13 +192,8 @@ int recon_main(int argc, char **argv)
 	}
 	const std::string dir = argv[optind];
 	// Checked before anything is read or computed, so a wrong name costs nothing and loses nothing.
-	std::vector<std::pair<std::string, const char *>> outs = {{out, ".drc"}};
-	if (params.texture_enabled)
-		outs.push_back({texture_path(out), ".png"});
-	if (!ply.empty())
-		outs.push_back({ply, ".ply"});
-	if (!report_path.empty())
-		outs.push_back({report_path, ".json"});
+	std::vector<std::pair<std::string, const char *>> outs = {
+		{out, ".drc"}, {params.texture_enabled ? texture_path(out) : "", ".png"}, {ply, ".ply"}, {report_path, ".json"}};
 	std::string why;
 	if (!check_outputs(capture_set_inputs(dir), outs, &why)) {
 		std::fprintf(stderr, "facescan recon: %s\n", why.c_str());
