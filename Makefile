@@ -99,6 +99,7 @@ tests: $(TEST_BINS) $(BINS)
 
 deps:
 	@./tools/install-deps.sh
+	@./tools/install-web-deps.sh scan $(BUILD) || echo "deps: no scanned head fetched (facescan simulate --head scan exits 1)"
 
 # Quiet by default; V=1 shows whole command lines.
 Q := $(if $(V),,@)

@@ -296,6 +296,88 @@ V3 head_albedo(const V3 &p0, const V3 &skin, uint64_t key, const Shape &s, const
 	return c;
 }
 
+// Moves surface-net vertices onto the zero set of `field` (Newton steps no longer than a cell,
+// so a vertex stays near its cell) and gives each the normalised `gradient` there.
+template <class Field, class Gradient>
+void settle(Mesh *mesh, float h, const Field &field, const Gradient &gradient)
+{
+	Mesh &m = *mesh;
+	m.normals.resize(m.vertices.size());
+	cv::parallel_for_(cv::Range(0, int(m.vertices.size())), [&](const cv::Range &r) {
+		for (int vi = r.start; vi < r.end; vi++) {
+			V3 p = m.vertices[size_t(vi)];
+			for (int it = 0; it < 4; it++) {
+				V3 g = gradient(p);
+				float g2 = g.dot(g);
+				if (g2 < 1e-8f)
+					break;
+				V3 step = g * (field(p) / g2);
+				if (len(step) > h)
+					step *= h / len(step);
+				p -= step;
+			}
+			V3 g = gradient(p);
+			float gl = len(g);
+			m.vertices[size_t(vi)] = p;
+			m.normals[size_t(vi)] = gl > 1e-8f ? g * (1.f / gl) : V3(0, 0, 1);
+		}
+	});
+}
+
+// Albedo painted from each vertex's position in canonical coordinates.
+void paint(const HeadSpec &spec, const Shape &shape, const V3 &skin, Mesh *mesh)
+{
+	const uint64_t key = internal::mix64(spec.seed ^ 0x5ea1f00dULL);
+	mesh->colors.resize(mesh->vertices.size());
+	cv::parallel_for_(cv::Range(0, int(mesh->vertices.size())), [&](const cv::Range &r) {
+		for (int vi = r.start; vi < r.end; vi++)
+			mesh->colors[size_t(vi)] =
+				head_albedo(canonical(mesh->vertices[size_t(vi)], shape), skin, key, shape, spec.look);
+	});
+}
+
+// The scanned head (spec.scan_dir): the skin iso-surface of its volume by the same surface
+// nets, the largest connected piece only (a CT's head rest and table are separate pieces),
+// painted as a canonical-shaped head with spec's look.
+Status make_scan_head(const HeadSpec &spec, const V3 &skin, Mesh *ret_mesh)
+{
+	internal::ScanVolume vol;
+	Status st = internal::load_scan_volume(spec.scan_dir, &vol);
+	if (!st.ok())
+		return st;
+	const float h = float(spec.cell_mm);
+	const V3 lo = vol.lo - V3(2 * h, 2 * h, 2 * h);
+	const int nx = int(std::ceil((vol.hi[0] - lo[0]) / h)) + 3;
+	const int ny = int(std::ceil((vol.hi[1] - lo[1]) / h)) + 3;
+	const int nz = int(std::ceil((vol.hi[2] - lo[2]) / h)) + 3;
+	std::vector<float> f(size_t(nx) * size_t(ny) * size_t(nz));
+	cv::parallel_for_(cv::Range(0, nz), [&](const cv::Range &r) {
+		for (int k = r.start; k < r.end; k++)
+			for (int j = 0; j < ny; j++)
+				for (int i = 0; i < nx; i++)
+					f[(size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i)] =
+						internal::scan_field(vol, lo + V3(float(i) * h, float(j) * h, float(k) * h));
+	});
+	Mesh m;
+	internal::surface_nets(f, nx, ny, nz, lo, h, &m);
+	f.clear();
+	f.shrink_to_fit();
+	internal::keep_largest_piece(&m);
+	if (m.vertices.empty())
+		return Status::error(-EINVAL, "scan head in " + spec.scan_dir + ": no skin surface in the volume");
+	auto field = [&](const V3 &p) { return internal::scan_field(vol, p); };
+	settle(&m, h, field, [&](const V3 &p) {
+		const float d = 0.25f;
+		V3 g(field(p + V3(d, 0, 0)) - field(p - V3(d, 0, 0)), field(p + V3(0, d, 0)) - field(p - V3(0, d, 0)),
+		     field(p + V3(0, 0, d)) - field(p - V3(0, 0, d)));
+		return g * (0.5f / d);
+	});
+	paint(spec, Shape(), skin, &m);
+	internal::orient_outwards(&m);
+	*ret_mesh = std::move(m);
+	return Status();
+}
+
 } // namespace
 
 const std::vector<HeadShapeRange> &head_shape_ranges()
@@ -390,72 +472,12 @@ HeadShape random_head_shape(uint64_t head_seed)
 	return h;
 }
 
-Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
+void internal::surface_nets(const std::vector<float> &f, int nx, int ny, int nz, const cv::Vec3f &lo, float h,
+			    Mesh *ret_mesh)
 {
-	if (!(spec.cell_mm >= 0.4 && spec.cell_mm <= 8))
-		return Status::error(-EINVAL, "head cell_mm " + std::to_string(spec.cell_mm) +
-						      " out of range [0.4, 8]");
-	for (const HeadShapeRange &r : head_shape_ranges()) {
-		double v = spec.shape.*r.member;
-		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
-			return Status::error(-EINVAL, std::string("head shape ") + r.name + " " +
-							      std::to_string(v) + " out of range [" +
-							      std::to_string(r.lo) + ", " + std::to_string(r.hi) + "]");
-	}
-	for (const HeadLookRange &r : head_look_ranges()) {
-		double v = spec.look.*r.member;
-		// The canonical look's values (freckle_darkness etc.) lie inside their ranges too.
-		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
-			return Status::error(-EINVAL, std::string("head look ") + r.name + " " + std::to_string(v) +
-							      " out of range [" + std::to_string(r.lo) + ", " +
-							      std::to_string(r.hi) + "]");
-	}
-	for (int k = 0; k < 3; k++)
-		if (!(spec.look.hair[k] >= 0 && spec.look.hair[k] <= 1))
-			return Status::error(-EINVAL, "head look hair albedo must lie in 0..1");
-	Shape shape = make_shape(spec.shape);
-	shape.shoulders = spec.look.shoulders;
-	for (int k = 0; k < 3; k++)
-		if (!(skin[k] >= 0 && skin[k] <= 1))
-			return Status::error(-EINVAL, "skin albedo must lie in 0..1");
-	const float h = float(spec.cell_mm);
-	// The canonical head's box, scaled with the head (and widened for the asymmetry).
-	const float wx = float(spec.shape.width) * (1 + std::fabs(shape.asym));
-	const float bx = shape.shoulders ? 210.f : 104.f, by = shape.shoulders ? -338.f : -212.f;
-	const float bz = shape.shoulders ? -140.f : -122.f;
-	const V3 lo(-bx * wx, by * float(spec.shape.height), bz * float(spec.shape.depth));
-	const V3 hi(bx * wx, 136 * float(spec.shape.height), 132 * float(spec.shape.depth));
-	const int nx = int(std::ceil((hi[0] - lo[0]) / h)) + 1;
-	const int ny = int(std::ceil((hi[1] - lo[1]) / h)) + 1;
-	const int nz = int(std::ceil((hi[2] - lo[2]) / h)) + 1;
 	auto idx = [&](int i, int j, int k) { return (size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i); };
 	auto point = [&](int i, int j, int k) { return lo + V3(float(i) * h, float(j) * h, float(k) * h); };
-
-	// Coarse pass every 4 samples; fine samples only near the surface (the field is a
-	// distance bound, so far samples keep a coarse value with the right sign).
-	std::vector<float> f(size_t(nx) * size_t(ny) * size_t(nz), 0.f);
-	const int s = 4;
-	const int cx = (nx - 1) / s + 2, cy = (ny - 1) / s + 2, cz = (nz - 1) / s + 2;
-	std::vector<float> coarse(size_t(cx) * size_t(cy) * size_t(cz));
-	cv::parallel_for_(cv::Range(0, cz), [&](const cv::Range &r) {
-		for (int k = r.start; k < r.end; k++)
-			for (int j = 0; j < cy; j++)
-				for (int i = 0; i < cx; i++)
-					coarse[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] =
-						head_field(point(i * s, j * s, k * s), shape);
-	});
-	const float band = float(s) * h * 1.8f;
-	cv::parallel_for_(cv::Range(0, nz), [&](const cv::Range &r) {
-		for (int k = r.start; k < r.end; k++)
-			for (int j = 0; j < ny; j++)
-				for (int i = 0; i < nx; i++) {
-					int ci = (i + s / 2) / s, cj = (j + s / 2) / s, ck = (k + s / 2) / s;
-					float c = coarse[(size_t(ck) * size_t(cy) + size_t(cj)) * size_t(cx) + size_t(ci)];
-					f[idx(i, j, k)] = std::fabs(c) > band ? c : head_field(point(i, j, k), shape);
-				}
-	});
-
-	// Surface nets: one vertex per cell with a sign change, at the mean of its edge crossings.
+	// One vertex per cell with a sign change, at the mean of its edge crossings.
 	Mesh m;
 	std::vector<int> cell_vertex(size_t(nx) * size_t(ny) * size_t(nz), -1);
 	static const int corner[8][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0},
@@ -516,37 +538,13 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 					quad(cell_vertex[idx(i - 1, j - 1, k)], cell_vertex[idx(i, j - 1, k)],
 					     cell_vertex[idx(i, j, k)], cell_vertex[idx(i - 1, j, k)]);
 			}
-	f.clear();
-	f.shrink_to_fit();
-	cell_vertex.clear();
-	cell_vertex.shrink_to_fit();
+	*ret_mesh = std::move(m);
+}
 
-	// Project vertices onto the surface (Newton on the field), normals from the gradient,
-	// albedo painted from the position.
-	const uint64_t key = internal::mix64(spec.seed ^ 0x5ea1f00dULL);
-	m.normals.resize(m.vertices.size());
-	m.colors.resize(m.vertices.size());
-	cv::parallel_for_(cv::Range(0, int(m.vertices.size())), [&](const cv::Range &r) {
-		for (int vi = r.start; vi < r.end; vi++) {
-			V3 p = m.vertices[size_t(vi)];
-			for (int it = 0; it < 4; it++) {
-				V3 g = field_gradient(p, shape);
-				float g2 = g.dot(g);
-				if (g2 < 1e-8f)
-					break;
-				V3 step = g * (head_field(p, shape) / g2);
-				if (len(step) > h) // stay in the neighbourhood of the cell
-					step *= h / len(step);
-				p -= step;
-			}
-			V3 g = field_gradient(p, shape);
-			float gl = len(g);
-			m.vertices[size_t(vi)] = p;
-			m.normals[size_t(vi)] = gl > 1e-8f ? g * (1.f / gl) : V3(0, 0, 1);
-			m.colors[size_t(vi)] = head_albedo(canonical(p, shape), skin, key, shape, spec.look);
-		}
-	});
-	// Orient every triangle outwards (the quad winding above depends on the crossing sign).
+void internal::orient_outwards(Mesh *mesh)
+{
+	Mesh &m = *mesh;
+	// The quad winding of surface_nets depends on the crossing sign.
 	for (cv::Vec3i &t : m.triangles) {
 		const V3 &a = m.vertices[size_t(t[0])], &b = m.vertices[size_t(t[1])], &c = m.vertices[size_t(t[2])];
 		V3 n = (b - a).cross(c - a);
@@ -554,6 +552,84 @@ Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
 		if (n.dot(avg) < 0)
 			std::swap(t[1], t[2]);
 	}
+}
+
+Status make_head(const HeadSpec &spec, const cv::Vec3f &skin, Mesh *ret_mesh)
+{
+	if (!(spec.cell_mm >= 0.4 && spec.cell_mm <= 8))
+		return Status::error(-EINVAL, "head cell_mm " + std::to_string(spec.cell_mm) +
+						      " out of range [0.4, 8]");
+	for (const HeadShapeRange &r : head_shape_ranges()) {
+		double v = spec.shape.*r.member;
+		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
+			return Status::error(-EINVAL, std::string("head shape ") + r.name + " " +
+							      std::to_string(v) + " out of range [" +
+							      std::to_string(r.lo) + ", " + std::to_string(r.hi) + "]");
+	}
+	for (const HeadLookRange &r : head_look_ranges()) {
+		double v = spec.look.*r.member;
+		// The canonical look's values (freckle_darkness etc.) lie inside their ranges too.
+		if (!(v >= r.lo - 1e-9 && v <= r.hi + 1e-9))
+			return Status::error(-EINVAL, std::string("head look ") + r.name + " " + std::to_string(v) +
+							      " out of range [" + std::to_string(r.lo) + ", " +
+							      std::to_string(r.hi) + "]");
+	}
+	for (int k = 0; k < 3; k++)
+		if (!(spec.look.hair[k] >= 0 && spec.look.hair[k] <= 1))
+			return Status::error(-EINVAL, "head look hair albedo must lie in 0..1");
+	Shape shape = make_shape(spec.shape);
+	shape.shoulders = spec.look.shoulders;
+	for (int k = 0; k < 3; k++)
+		if (!(skin[k] >= 0 && skin[k] <= 1))
+			return Status::error(-EINVAL, "skin albedo must lie in 0..1");
+	if (!spec.scan_dir.empty())
+		return make_scan_head(spec, skin, ret_mesh);
+	const float h = float(spec.cell_mm);
+	// The canonical head's box, scaled with the head (and widened for the asymmetry).
+	const float wx = float(spec.shape.width) * (1 + std::fabs(shape.asym));
+	const float bx = shape.shoulders ? 210.f : 104.f, by = shape.shoulders ? -338.f : -212.f;
+	const float bz = shape.shoulders ? -140.f : -122.f;
+	const V3 lo(-bx * wx, by * float(spec.shape.height), bz * float(spec.shape.depth));
+	const V3 hi(bx * wx, 136 * float(spec.shape.height), 132 * float(spec.shape.depth));
+	const int nx = int(std::ceil((hi[0] - lo[0]) / h)) + 1;
+	const int ny = int(std::ceil((hi[1] - lo[1]) / h)) + 1;
+	const int nz = int(std::ceil((hi[2] - lo[2]) / h)) + 1;
+	auto idx = [&](int i, int j, int k) { return (size_t(k) * size_t(ny) + size_t(j)) * size_t(nx) + size_t(i); };
+	auto point = [&](int i, int j, int k) { return lo + V3(float(i) * h, float(j) * h, float(k) * h); };
+
+	// Coarse pass every 4 samples; fine samples only near the surface (the field is a
+	// distance bound, so far samples keep a coarse value with the right sign).
+	std::vector<float> f(size_t(nx) * size_t(ny) * size_t(nz), 0.f);
+	const int s = 4;
+	const int cx = (nx - 1) / s + 2, cy = (ny - 1) / s + 2, cz = (nz - 1) / s + 2;
+	std::vector<float> coarse(size_t(cx) * size_t(cy) * size_t(cz));
+	cv::parallel_for_(cv::Range(0, cz), [&](const cv::Range &r) {
+		for (int k = r.start; k < r.end; k++)
+			for (int j = 0; j < cy; j++)
+				for (int i = 0; i < cx; i++)
+					coarse[(size_t(k) * size_t(cy) + size_t(j)) * size_t(cx) + size_t(i)] =
+						head_field(point(i * s, j * s, k * s), shape);
+	});
+	const float band = float(s) * h * 1.8f;
+	cv::parallel_for_(cv::Range(0, nz), [&](const cv::Range &r) {
+		for (int k = r.start; k < r.end; k++)
+			for (int j = 0; j < ny; j++)
+				for (int i = 0; i < nx; i++) {
+					int ci = (i + s / 2) / s, cj = (j + s / 2) / s, ck = (k + s / 2) / s;
+					float c = coarse[(size_t(ck) * size_t(cy) + size_t(cj)) * size_t(cx) + size_t(ci)];
+					f[idx(i, j, k)] = std::fabs(c) > band ? c : head_field(point(i, j, k), shape);
+				}
+	});
+
+	Mesh m;
+	internal::surface_nets(f, nx, ny, nz, lo, h, &m);
+	f.clear();
+	f.shrink_to_fit();
+
+	settle(&m, h, [&](const V3 &p) { return head_field(p, shape); },
+	       [&](const V3 &p) { return field_gradient(p, shape); });
+	paint(spec, shape, skin, &m);
+	internal::orient_outwards(&m);
 	*ret_mesh = std::move(m);
 	return Status();
 }

@@ -1,6 +1,7 @@
 // Meshes: checks, transforms, the plane and sphere test objects, PLY output.
 #include "sim/internal.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -138,6 +139,50 @@ Status write_ply(const std::string &path, const Mesh &mesh)
 		data.append(reinterpret_cast<const char *>(&t[0]), 12);
 	}
 	return write_file_atomic(path, data.data(), data.size());
+}
+
+void internal::keep_largest_piece(Mesh *mesh)
+{
+	// Union-find over vertices joined by triangles.
+	std::vector<int> parent(mesh->vertices.size());
+	for (size_t i = 0; i < parent.size(); i++)
+		parent[i] = int(i);
+	auto find = [&](int a) {
+		while (parent[size_t(a)] != a)
+			a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+		return a;
+	};
+	for (const cv::Vec3i &t : mesh->triangles)
+		for (int e = 1; e < 3; e++) {
+			int a = find(t[0]), b = find(t[e]);
+			if (a != b)
+				parent[size_t(std::max(a, b))] = std::min(a, b);
+		}
+	std::vector<size_t> size(parent.size(), 0);
+	for (const cv::Vec3i &t : mesh->triangles)
+		size[size_t(find(t[0]))]++;
+	const int keep = int(std::max_element(size.begin(), size.end()) - size.begin());
+	Mesh out;
+	std::vector<int> map(mesh->vertices.size(), -1);
+	for (const cv::Vec3i &t : mesh->triangles) {
+		if (find(t[0]) != keep)
+			continue;
+		cv::Vec3i u;
+		for (int c = 0; c < 3; c++) {
+			int &m = map[size_t(t[c])];
+			if (m < 0) {
+				m = int(out.vertices.size());
+				out.vertices.push_back(mesh->vertices[size_t(t[c])]);
+				if (!mesh->normals.empty())
+					out.normals.push_back(mesh->normals[size_t(t[c])]);
+				if (!mesh->colors.empty())
+					out.colors.push_back(mesh->colors[size_t(t[c])]);
+			}
+			u[c] = m;
+		}
+		out.triangles.push_back(u);
+	}
+	*mesh = std::move(out);
 }
 
 } // namespace facescan::sim

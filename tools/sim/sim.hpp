@@ -230,6 +230,10 @@ struct HeadSpec {
 	uint32_t seed = 1;	// skin blotches
 	HeadShape shape;	// anatomy (default: the canonical head)
 	HeadLook look;		// appearance (default: the canonical head's)
+	/// Non-empty: the head is the scanned one prepared in this directory
+	/// (`tools/install-web-deps.sh scan`), painted with `look` and `seed`; `shape` and
+	/// look.shoulders are not used. -ENOENT from make_head when the directory has no scan.
+	std::string scan_dir;
 };
 
 /// The procedural head in head coordinates (mm, face towards +z, +y up, centred near the

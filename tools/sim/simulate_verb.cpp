@@ -5,6 +5,7 @@
 
 #include <getopt.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <ctime>
@@ -20,7 +21,7 @@ static void simulate_usage(FILE *out)
 {
 	std::fprintf(out,
 		     "usage: facescan simulate [--scene NAME] [--config FILE | --booth default|random]\n"
-		     "                         [--seed N] [--head varied|random|canonical] [--head-seed N|canonical]\n"
+		     "                         [--seed N] [--head varied|random|canonical|scan] [--head-seed N|canonical]\n"
 		     "                         [--scale S] [--supersample N] [--no-texture]\n"
 		     "                         [--contact-sheet PNG]\n"
 		     "                         --out DIR\n"
@@ -42,7 +43,11 @@ static void simulate_usage(FILE *out)
 		     "  --head KIND        varied: anatomy drawn from the head seed, default skin (the\n"
 		     "                     default); random: anatomy and appearance (skin tone, freckles,\n"
 		     "                     brows, lips, stubble, hairline, shoulders; the default with\n"
-		     "                     --booth random); canonical: the fixed reference head\n"
+		     "                     --booth random); canonical: the fixed reference head;\n"
+		     "                     scan: a real head's CT fetched at set-up\n"
+		     "                     (tools/install-web-deps.sh scan; from $FACESCAN_SCAN_HEAD,\n"
+		     "                     else BUILD/cache/scan-head beside bin/) with the appearance\n"
+		     "                     of a random head (exit 1 when it was not fetched)\n"
 		     "  --head-seed N      draws the head (default: the --seed value);\n"
 		     "                     'canonical' keeps the fixed reference head\n"
 		     "  --scale S          camera resolution factor, K scaled to match (0 < S <= 4)\n"
@@ -52,6 +57,22 @@ static void simulate_usage(FILE *out)
 		     "  --coverage         render nothing: print how much of the face (hairline to chin,\n"
 		     "                     ear to ear) the rig lights and its stereo pairs see, for the\n"
 		     "                     head moved +-20 mm and turned +-10 deg (no --out needed)\n");
+}
+
+// Where tools/install-web-deps.sh scan put the scanned head: $FACESCAN_SCAN_HEAD, else
+// cache/scan-head in the build directory this binary runs from (BUILD/bin/facescan).
+static std::string scan_head_dir()
+{
+	const char *env = std::getenv("FACESCAN_SCAN_HEAD");
+	if (env && *env)
+		return env;
+	char exe[4096];
+	ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+	if (n <= 0)
+		return "build/cache/scan-head";
+	std::string path(exe, size_t(n));
+	path = path.substr(0, path.find_last_of('/')); // BUILD/bin
+	return path.substr(0, path.find_last_of('/')) + "/cache/scan-head";
 }
 
 static int bad(const char *what, const char *value)
@@ -149,8 +170,8 @@ int simulate_main(int argc, char **argv)
 			break;
 		case 'K':
 			head_kind = optarg;
-			if (head_kind != "varied" && head_kind != "random" && head_kind != "canonical")
-				return bad("--head must be varied, random or canonical", optarg);
+			if (head_kind != "varied" && head_kind != "random" && head_kind != "canonical" && head_kind != "scan")
+				return bad("--head must be varied, random, canonical or scan", optarg);
 			break;
 		case 'B':
 			booth = optarg;
@@ -217,9 +238,18 @@ int simulate_main(int argc, char **argv)
 	}
 	if (!head_seed_given)
 		head_seed = seed;
-	if (!canonical_head)
+	if (!canonical_head && head_kind != "scan")
 		scene.head.shape = sim::random_head_shape(head_seed);
-	if (head_kind == "random") {
+	if (head_kind == "scan") {
+		scene.head.scan_dir = scan_head_dir();
+		if (access((scene.head.scan_dir + "/volume.raw").c_str(), R_OK) != 0) {
+			std::fprintf(stderr, "facescan simulate: --head scan: no scanned head in %s: fetch it with "
+					     "tools/install-web-deps.sh scan (or set FACESCAN_SCAN_HEAD)\n",
+				     scene.head.scan_dir.c_str());
+			return 1;
+		}
+	}
+	if (head_kind == "random" || head_kind == "scan") {
 		const sim::HeadAppearance look = sim::random_head_appearance(head_seed);
 		scene.skin = look.skin;
 		scene.head.look = look.look;
