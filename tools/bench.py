@@ -83,6 +83,9 @@ def main():
     ap.add_argument("--heads", type=int, default=int(os.environ.get("BENCH_HEADS", 3)))
     ap.add_argument("--first-seed", type=int, default=101)
     ap.add_argument("--out", default="docs/benchmarks.md")
+    # One more scene per booth with the scanned head (`--head scan`, a real head's CT fetched by
+    # tools/install-web-deps.sh scan; docs/simulator.md), where it was fetched.
+    ap.add_argument("--scan-head", type=int, default=int(os.environ.get("BENCH_SCAN_HEAD", 1)))
     a = ap.parse_args()
     fs = os.path.join(a.bin, "facescan")
     base = os.path.join(a.bin, "sgbm-baseline")
@@ -90,11 +93,15 @@ def main():
     os.makedirs(work, exist_ok=True)
     rows = []
     stamp = simulator_stamp()
+    scan_dir = os.environ.get("FACESCAN_SCAN_HEAD", os.path.join(os.path.dirname(os.path.abspath(a.bin)), "cache", "scan-head"))
+    a.scan = a.scan_head and os.path.exists(os.path.join(scan_dir, "volume.raw"))
+    if a.scan_head and not a.scan:
+        print("bench: no scanned head in %s (tools/install-web-deps.sh scan): its rows are left out" % scan_dir, flush=True)
     for b in range(a.booths):
         booth = a.first_seed + b
-        for k in range(a.heads):
-            head = booth * 10 + k
-            name = "booth%d-head%d" % (booth, head)
+        heads = [("random", booth * 10 + k) for k in range(a.heads)] + ([("scan", booth * 10 + 9)] if a.scan else [])
+        for kind, head in heads:
+            name = "booth%d-%s%d" % (booth, "head" if kind == "random" else "scan", head)
             cap = os.path.join(work, name)
             # A set rendered by an earlier run of the same simulator sources is reused
             # (BENCH_FRESH=1: never).
@@ -106,8 +113,9 @@ def main():
             else:
                 subprocess.run(["rm", "-rf", cap], check=True)
                 print("bench: %s: simulate" % name, flush=True)
-                r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", "random",
-                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True)
+                r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", kind,
+                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True,
+                                   env=dict(os.environ, FACESCAN_SCAN_HEAD=scan_dir))
                 if r.returncode != 0:
                     print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
                     sys.exit(1)
@@ -150,8 +158,9 @@ def write(path, rows, a):
               "(`facescan simulate --booth random --seed B --head random --head-seed H`, docs/simulator.md):",
               "cameras, lenses, projectors (pitch on the face 6-20 mm, any quarter turn and roll, overlapping",
               "or masked to zones), light, noise, the head's pose, its shape and appearance, and an error of a",
-              "good calibration (~0.3 px) in the calibration the reconstruction is given. %d booths x %d heads," % (
-                  a.booths, a.heads),
+              "good calibration (~0.3 px) in the calibration the reconstruction is given. %d booths x %d heads%s," % (
+                  a.booths, a.heads, " + the scanned head (rows `boothB-scanH`: `--head scan --head-seed H`, a real" +
+                  " head's CT, crown to upper lip, with a random head's skin; docs/simulator.md)" if a.scan else ""),
               "booth seeds from %d. Each capture is reconstructed by `facescan recon` (dense, the default) and by" % a.first_seed,
               "the stock OpenCV pipeline (`build/bin/sgbm-baseline`: stereoRectify, SGBM 3-way at half resolution",
               "over the working volume's disparities, its left-right check and speckle filter, no decoding) in",
