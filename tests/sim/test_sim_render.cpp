@@ -411,10 +411,10 @@ static void test_head_variation(void **)
 
 	// Same head seed: identical meshes; other head seeds: a different head, still closed.
 	Mesh h0, h1a, h1b, h2;
-	assert_true(make_head(HeadSpec{2.0, 1, HeadShape(), HeadLook()}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h0).ok());
-	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1), HeadLook()}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1a).ok());
-	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1), HeadLook()}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1b).ok());
-	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(2), HeadLook()}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h2).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, HeadShape(), HeadLook(), ""}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h0).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1), HeadLook(), ""}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1a).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(1), HeadLook(), ""}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h1b).ok());
+	assert_true(make_head(HeadSpec{2.0, 1, random_head_shape(2), HeadLook(), ""}, cv::Vec3f(0.6f, 0.4f, 0.3f), &h2).ok());
 	assert_int_equal(h1a.vertices.size(), h1b.vertices.size());
 	assert_int_equal(h1a.triangles.size(), h1b.triangles.size());
 	for (size_t i = 0; i < h1a.vertices.size(); i++)
