@@ -237,6 +237,27 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 	return prior;
 }
 
+cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const DenseParams &params)
+{
+	cv::Mat bad(valid.size(), CV_8U, cv::Scalar(0));
+	const float g = float(params.max_disparity_gradient), fall = float(params.max_falling_gradient);
+	for (int y = 1; y + 1 < valid.rows; ++y) {
+		const uchar *vu = valid.ptr<uchar>(y - 1), *vr = valid.ptr<uchar>(y), *vd = valid.ptr<uchar>(y + 1);
+		const float *tu = disparity.ptr<float>(y - 1), *tr = disparity.ptr<float>(y),
+			    *td = disparity.ptr<float>(y + 1);
+		uchar *br = bad.ptr<uchar>(y);
+		for (int x = 1; x + 1 < valid.cols; ++x) {
+			if (!vr[x])
+				continue;
+			const float along = tr[x + 1] - tr[x - 1];
+			if ((vr[x - 1] && vr[x + 1] && (along > 2 * g || along < -2 * fall)) ||
+			    (vu[x] && vd[x] && std::fabs(td[x] - tu[x]) > 2 * g))
+				br[x] = 255;
+		}
+	}
+	return bad;
+}
+
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity)
 {
@@ -824,20 +845,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
 	// rim of the matched region are where matches go wrong: both are trimmed.
 	{
-		cv::Mat bad(rp.size, CV_8U, cv::Scalar(0));
-		const float g = float(params.max_disparity_gradient);
-		for (int y = 1; y + 1 < rp.size.height; ++y) {
-			const uchar *vu = valid.ptr<uchar>(y - 1), *vr = valid.ptr<uchar>(y), *vd = valid.ptr<uchar>(y + 1);
-			const float *tu = total.ptr<float>(y - 1), *tr = total.ptr<float>(y), *td = total.ptr<float>(y + 1);
-			uchar *br = bad.ptr<uchar>(y);
-			for (int x = 1; x + 1 < rp.size.width; ++x) {
-				if (!vr[x])
-					continue;
-				if ((vr[x - 1] && vr[x + 1] && std::fabs(tr[x + 1] - tr[x - 1]) > 2 * g) ||
-				    (vu[x] && vd[x] && std::fabs(td[x] - tu[x]) > 2 * g))
-					br[x] = 255;
-			}
-		}
+		cv::Mat bad = steep_pixels(valid, total, params);
 		if (params.rim_px > 0) {
 			// Only the region's outline is a rim: pinholes SGBM left inside it are filled first
 			// so that erosion does not widen them.

@@ -97,6 +97,14 @@ struct DenseParams {
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the
 	/// default booth) and their neighbours are dropped; so is a rim of `rim_px` pixels.
 	double max_disparity_gradient = 1.5;
+	/// ... except along the rows where the disparity falls (d = x_a - x_b): a surface there is
+	/// stretched in the second view, seen more frontally by it than by the first (a slope of -3
+	/// makes it 4 times as wide there), which the prior's warp has already taken up; only beyond
+	/// this slope is it dropped. Rising along the rows is the other way (towards 1 the second
+	/// view sees the surface edge-on; beyond 1 it could not see it at all) and keeps the limit
+	/// above. 10 fresh random booths (1510-1519): completeness up on 9, median +0.38 points
+	/// (1514 54.2 -> 57.0 %), RMS median +0.001 mm (at most +0.003).
+	double max_falling_gradient = 3.0;
 	int rim_px = 2;
 	int pinhole_px = 60; // unmatched holes up to this size do not count as rim
 	/// Sub-pixel refinement after SGBM: Lucas-Kanade along the rows at `refine_scale` times the
@@ -209,6 +217,12 @@ cv::Point3d rectified_to_world(const RectifiedPair &rp, const CameraModel &a, do
 cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_left,
 			const std::vector<double> &seed_disparity, double max_edge_factor, double extrapolate_spacings,
 			double *ret_median_spacing_px);
+
+/// The steep filter's verdict (CV_8U, 255 = steep) on `disparity` (CV_32F) where `valid`: the
+/// central difference over 2 px rises by more than 2 * max_disparity_gradient along the rows or
+/// changes by more than that down the columns, or falls by more than 2 * max_falling_gradient
+/// along the rows (DenseParams). Exposed for tests.
+cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const DenseParams &params);
 
 /// Refines `disparity` (rectified matching pixels, CV_32F, valid where `valid` != 0) in place by
 /// Lucas-Kanade along the rows on the pair rectified at params.refine_scale times `rp`'s scale.

@@ -551,6 +551,40 @@ static void refinement_keeps_disparity_next_to_holes(void **)
 	assert_int_equal(next_to_hole_moved, 0);
 }
 
+// Ramps of known slope: falling along the rows is a surface stretched in the second view (kept
+// down to max_falling_gradient), rising or changing down the columns beyond
+// max_disparity_gradient is edge-on (dropped).
+static void steep_test_keeps_stretched_surfaces(void **)
+{
+	const DenseParams params; // 1.5 rising / down the columns, 3 falling
+	const cv::Size size(60, 20);
+	const cv::Mat valid(size, CV_8U, cv::Scalar(255));
+	auto steep_share = [&](double along, double down) {
+		cv::Mat d(size, CV_32F);
+		for (int y = 0; y < size.height; ++y)
+			for (int x = 0; x < size.width; ++x)
+				d.at<float>(y, x) = float(100 + along * x + down * y);
+		const cv::Mat bad = steep_pixels(valid, d, params);
+		return double(cv::countNonZero(bad)) / double((size.width - 2) * (size.height - 2));
+	};
+	std::printf("steep share: falling 2 -> %.2f, falling 4 -> %.2f, rising 2 -> %.2f, rising 1 -> %.2f, "
+		    "down 2 -> %.2f, down -2 -> %.2f\n", steep_share(-2, 0), steep_share(-4, 0), steep_share(2, 0),
+		    steep_share(1, 0), steep_share(0, 2), steep_share(0, -2));
+	assert_true(steep_share(-2, 0) == 0.0);
+	assert_true(steep_share(-2.9, 0) == 0.0);
+	assert_true(steep_share(-4, 0) == 1.0);
+	assert_true(steep_share(2, 0) == 1.0);
+	assert_true(steep_share(1, 0) == 0.0);
+	assert_true(steep_share(0, 2) == 1.0);
+	assert_true(steep_share(0, -2) == 1.0);
+	// Only pixels whose neighbours are matched are judged: a lone valid pixel is never steep.
+	cv::Mat lone(size, CV_8U, cv::Scalar(0));
+	lone.at<uchar>(10, 30) = 255;
+	cv::Mat d(size, CV_32F, cv::Scalar(0));
+	d.at<float>(10, 30) = 50;
+	assert_int_equal(cv::countNonZero(steep_pixels(lone, d, params)), 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -565,6 +599,7 @@ int main(void)
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
+		cmocka_unit_test(steep_test_keeps_stretched_surfaces),
 		cmocka_unit_test(fusion_makes_one_sheet),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
