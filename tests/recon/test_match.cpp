@@ -292,8 +292,8 @@ static void grows_to_squares_without_code(void **)
 			d.squares[i].cell = -1;
 		}
 	MatchParams code_only, grow_only;
-	code_only.grow = code_only.guide = code_only.seed = false;
-	grow_only.guide = grow_only.seed = false;
+	code_only.grow.enabled = code_only.guide.enabled = code_only.seed.enabled = false;
+	grow_only.guide.enabled = grow_only.seed.enabled = false;
 	PairMatches before, grown, after;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, code_only, &before).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, grow_only, &grown).ok());
@@ -412,7 +412,7 @@ static void seeds_growth_where_no_code_reaches(void **)
 	// Guided matching would reach this band from the squares beside it in the image (its depth
 	// follows theirs here); off, so that only seeding can.
 	MatchParams seeding, no_seed;
-	seeding.guide = no_seed.guide = no_seed.seed = false;
+	seeding.guide.enabled = no_seed.guide.enabled = no_seed.seed.enabled = false;
 	PairMatches without, with;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, no_seed, &without).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, seeding, &with).ok());
