@@ -3,8 +3,9 @@
 //
 //   detect_squares(frame)  = intensity → find_squares → corners (force field + sub-pixel)
 //                            → classify_letters (adaptive hue) → link_grid → decode_cells
-//   match_pair(a, b)       = same cell id + epipolar constraint + depth plausibility, one copy of
-//                            the slide at a time (three projectors throw the same slide).
+//   match_pair(a, b)       = match_codes (same cell id + epipolar constraint + depth plausibility,
+//                            one copy of the slide at a time: three projectors throw the same
+//                            slide) → grow_matches → guide_matches → seed_matches → prune_matches
 //
 // Every sub-stage is a free function with its Params struct; none does I/O or logs.
 // Image coordinates are distorted pixels with the OpenCV convention (pixel centres at integers).
@@ -254,41 +255,132 @@ Status detect_squares(const cv::Mat &bgr, const Pattern &pattern, const DetectPa
 		      CameraDetections *ret);
 
 // ---- stage 4: correspondence ------------------------------------------------------------------
+//
+// match_pair = match_codes → grow_matches → (guide_matches → grow_matches) × up to GuideParams::rounds
+//              → seed_matches → prune_matches.
+// Each sub-stage takes the PairMatches the one before it produced and adds to them (or, prune,
+// takes from them); the pair's geometry is computed once (pair_geometry) and shared.
 
-struct MatchParams {
-	double max_epipolar_px = 2.0;	// symmetric distance to the epipolar line, pixels
+/// The epipolar geometry of a camera pair and the undistorted features of both views' squares,
+/// computed once per pair for every sub-stage of stage 4.
+struct PairGeometry {
+	cv::Matx33d E, R;	// essential matrix and rotation: x_b = R x_a + t (camera a's frame, mm)
+	cv::Vec3d t;
+	double fa = 0, fb = 0;	// mean focal lengths, px (epipolar distances are in pixels)
+	/// Normalised (undistorted) image coordinates, kFeatureCount per square: its centroid, then its
+	/// 4 corners (the centroid again where it has none). na for camera a, nb for camera b.
+	std::vector<cv::Point2d> na, nb;
+};
+
+/// The geometry of the pair (a, b) seen by cameras ca and cb. -EINVAL when an intrinsic matrix has
+/// no focal length or the two cameras share their centre.
+Status pair_geometry(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
+		     const CameraModel &cb, PairGeometry *ret);
+
+/// What every square pair matched by any sub-stage (4-4d) must satisfy.
+struct PairCheckParams {
 	/// Plausible depth of a matched point in camera a's frame, mm (rejects wrong slide copies).
 	double min_depth_mm = 150, max_depth_mm = 1500;
 	bool corners = true;		// also match the 4 corners of matched squares
 	/// Every corner of a matched square must be this close to its epipolar line, or the whole
 	/// square is refused (it is cut differently in the two views).
 	double max_corner_epipolar_px = 1.5;
+	/// Epipolar limit for squares matched without their code word (grown, guided, seeded). The
+	/// grid topology (or the depth range) already names the candidate, so this only refuses gross
+	/// errors; such squares are often the ones without corners (their area centroid is not
+	/// projectively invariant) or half lit (mixed, dim), so it is looser than the code's.
+	double max_uncoded_epipolar_px = 3.0;
+};
+
+/// Stage 4 (code): matching by cell id.
+struct CodeMatchParams {
+	double max_epipolar_px = 2.0;	// symmetric distance to the epipolar line, pixels
 	/// Two connected parts of the decoded grids (one in each camera) show the same copy of the
 	/// slide when at least this fraction of their shared cells, and this many (or all when
 	/// fewer), pass the epipolar and depth checks.
 	double min_part_agreement = 0.6;
 	int min_part_support = 3;
-	/// Grow the matches along both grids to squares without a usable code word (see match.cpp).
-	bool grow = true;
-	/// Epipolar limit for grown squares. The grid topology already names the candidate, so this
-	/// only refuses gross errors; grown squares are often the ones without corners (their area
-	/// centroid is not projectively invariant) or half lit (mixed, dim), so it is looser.
-	double grow_max_epipolar_px = 3.0;
-	/// Guided matching of the squares still left (see match.cpp): depth range from the matched
-	/// squares of camera a within this many grid pitches (at least this many of them), widened
-	/// by this margin.
-	bool guide = true;
-	int guide_rounds = 4;
-	double guide_radius_pitches = 2.5;
-	int guide_min_around = 3;
-	double guide_depth_margin_mm = 8;
-	/// Seeded growth into parts no code word or matched neighbour reaches (see match.cpp): the
-	/// seed's trial growth must pair this many squares whose letters agree, twice as many as any
-	/// other candidate's, at a depth within the pair's matched range widened by the margin.
-	/// A seed is grown from even when `grow` is off: it is only as good as its growth.
-	bool seed = true;
-	int seed_min_support = 5;
-	double seed_depth_margin_mm = 20;
+};
+
+/// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same
+/// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth,
+/// and when the connected grid parts the two squares belong to agree as a whole (the same copy of
+/// the slide: all three projectors throw it, so a cell id can appear up to three times in each
+/// camera). A square with several such candidates is rejected (rejected_ambiguous), one with none
+/// counts in rejected_epipolar; one square never takes two partners. Irregular squares are not
+/// matched by their code. Sets *ret anew (cam_a, cam_b from the detections). -EINVAL when `g` is
+/// not the geometry of these detections.
+Status match_codes(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		   const Pattern &pattern, const PairCheckParams &check, const CodeMatchParams &params,
+		   PairMatches *ret);
+
+// Stages 4b-4d match the squares the code did not match. The code only serves to find where a
+// square is in the other view; a square whose code word could not be read (a missing neighbour, a
+// dim or mixed colour in a projector seam, a slide border cell) or whose grid links are broken
+// (around a nostril, a lip, an eyelid) is still the same surface patch in both views, and can be
+// found from the squares already matched around it. Every way the pair must pass the same tests:
+// letters and cells do not contradict, the epipolar line (max_uncoded_epipolar_px) and a plausible
+// depth; its corners as in match_codes. Once all are matched, prune_matches drops those that lie
+// off the surface their neighbours describe. Each takes `matches` as the sub-stage before left
+// them and adds to them; -EINVAL when `g` or `matches` do not belong to these detections. A
+// sub-stage whose Params are not `enabled` does nothing.
+
+/// Stage 4b: growing along both grids.
+struct GrowParams {
+	bool enabled = true;	// false: grow_matches adds nothing (seed_matches still grows its seeds)
+};
+
+/// Once a square is matched, its grid neighbour in direction d in camera a and the neighbour in
+/// direction d of its partner in camera b are the same projected square — whether or not its code
+/// word was read — when every neighbour already matched agrees (topology). Grows from every
+/// matched square, depth first, until nothing is added; adds to matches->grown. match_pair grows
+/// after match_codes and after each round of guide_matches.
+Status grow_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		    const PairCheckParams &check, const GrowParams &params, PairMatches *matches);
+
+/// Stage 4c: guided matching along the epipolar line.
+struct GuideParams {
+	bool enabled = true;
+	/// match_pair runs up to this many rounds (until one finds nothing), each followed by growing.
+	int rounds = 4;
+	/// Depth range from the matched squares of camera a within this many grid pitches (at least
+	/// this many of them), widened by this margin.
+	double radius_pitches = 2.5;
+	int min_around = 3;
+	double depth_margin_mm = 8;
+};
+
+/// One round: for a square still unmatched in camera a, the matched squares around it bound its
+/// depth, and along its epipolar line in camera b exactly one unmatched, compatible square may lie
+/// in that range (and it must not be the only candidate of another square of a). Adds to
+/// matches->guided.
+Status guide_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		     const PairCheckParams &check, const GuideParams &params, PairMatches *matches);
+
+/// Stage 4d: seeded growth into parts no code word or matched neighbour reaches.
+struct SeedParams {
+	bool enabled = true;
+	/// The seed's trial growth must pair this many squares whose letters agree, twice as many as
+	/// any other candidate's, at a depth within the pair's matched range widened by the margin.
+	int min_support = 5;
+	double depth_margin_mm = 20;
+};
+
+/// Seeds growth in parts of the grid that neither a code word nor a matched neighbour reaches
+/// (a band of neck under the chin, two rows tall, where no word is complete): a candidate pair
+/// of squares is tried by growing from it along both grids without committing; the letters it
+/// would pair must agree on every square where both are known, and only a seed whose growth
+/// pairs at least `min_support` such squares, far more than any other candidate for the same
+/// square, is kept (a wrong candidate on the epipolar line pairs letters at random, one in
+/// three). Depth stays within the range of the pair's matched squares, widened by
+/// `depth_margin_mm`. Each seed is grown from at once, whatever GrowParams say (a seed is only
+/// as good as its growth): adds to matches->seeded and matches->grown. Nothing is seeded when no
+/// square is matched yet.
+Status seed_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		    const PairCheckParams &check, const SeedParams &params, PairMatches *matches);
+
+/// Stage 4e: pruning matches off their neighbours' surface.
+struct PruneParams {
 	/// A grown, guided or centroid-only square's centroid must lie within this distance of the
 	/// quadric fitted to its `surface_points` nearest matched points of other squares within
 	/// `surface_radius_mm` (at least half of them must be that near; below 6, a plane is fitted).
@@ -307,14 +399,28 @@ struct MatchParams {
 	double surface_radius_mm = 20;
 };
 
-/// Matches the squares of two cameras by cell id (centroid + corners, the same feature of the same
-/// square), keeping a pair only when it satisfies the epipolar constraint and a plausible depth,
-/// and when the connected grid parts the two squares belong to agree as a whole (the same copy of
-/// the slide: all three projectors throw it). A square with several such candidates is rejected
-/// (rejected_ambiguous), one with none counts in rejected_epipolar. Then the squares the code did
-/// not match are grown along both grids, guided along their epipolar lines and, where nothing
-/// reaches, seeded by trial growth; every match not checked by its corners is pruned when it lies
-/// off its neighbours' surface (match.cpp: stages 4b-4e; counts in grown, guided, seeded, pruned).
+/// Removes the grown and guided squares, and the squares matched by their centroid alone (no
+/// corner to check them by), whose centroid lies off the surface the other matched points describe
+/// around it: a wrong candidate along the epipolar line, or a centroid shifted by a cut in one
+/// view. Run after all matching, so the neighbourhood surrounds the square. Twice: a bad square
+/// bends its neighbours' fits. Adds the squares it removed to matches->pruned.
+Status prune_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		     const PruneParams &params, PairMatches *matches);
+
+/// Stage 4 as the pipeline runs it: the sub-stages' Params.
+struct MatchParams {
+	PairCheckParams check;
+	CodeMatchParams code;
+	GrowParams grow;
+	GuideParams guide;
+	SeedParams seed;
+	PruneParams prune;
+};
+
+/// match_codes, then the squares the code did not match are grown along both grids, guided along
+/// their epipolar lines and, where nothing reaches, seeded by trial growth; every match not
+/// checked by its corners is pruned when it lies off its neighbours' surface (counts in grown,
+/// guided, seeded, pruned). -EINVAL as pair_geometry.
 Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
 		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
 		  PairMatches *ret);

@@ -1,13 +1,17 @@
 // Stage 4: correspondence between two cameras by cell id, checked against the epipolar
-// constraint and a plausible depth. The three projectors throw the same slide, so a cell id can
-// appear up to three times in each camera; a square is matched only when exactly one candidate of
-// the other camera is geometrically consistent, and one square never takes two partners.
+// constraint and a plausible depth (match_codes), then the squares the code did not match
+// (grow_matches, guide_matches, seed_matches) and the pruning of those off their neighbours'
+// surface (prune_matches); match_pair composes them. The three projectors throw the same slide,
+// so a cell id can appear up to three times in each camera; a square is matched only when exactly
+// one candidate of the other camera is geometrically consistent, and one square never takes two
+// partners.
 #include "recon/image_stages.hpp"
 
 #include <opencv2/calib3d.hpp>
 
 #include <cmath>
 #include <map>
+#include <string>
 #include <unordered_map>
 
 namespace facescan::recon {
@@ -30,47 +34,65 @@ std::vector<cv::Point2d> normalised(const CameraDetections &d, const CameraModel
 	return out;
 }
 
-struct Geometry {
-	cv::Matx33d E, R; // x_b = R x_a + t
-	cv::Vec3d t;
-	double fa, fb;
+// Symmetric distance to the epipolar lines, pixels.
+double epipolar(const PairGeometry &g, const cv::Point2d &na, const cv::Point2d &nb)
+{
+	cv::Vec3d xa(na.x, na.y, 1), xb(nb.x, nb.y, 1);
+	cv::Vec3d lb = g.E * xa, la = g.E.t() * xb;
+	double e = xb.dot(lb);
+	double db = std::abs(e) / std::max(1e-12, std::hypot(lb[0], lb[1]));
+	double da = std::abs(e) / std::max(1e-12, std::hypot(la[0], la[1]));
+	return 0.5 * (da * g.fa + db * g.fb);
+}
 
-	// Symmetric distance to the epipolar lines, pixels.
-	double epipolar(const cv::Point2d &na, const cv::Point2d &nb) const
-	{
-		cv::Vec3d xa(na.x, na.y, 1), xb(nb.x, nb.y, 1);
-		cv::Vec3d lb = E * xa, la = E.t() * xb;
-		double e = xb.dot(lb);
-		double db = std::abs(e) / std::max(1e-12, std::hypot(lb[0], lb[1]));
-		double da = std::abs(e) / std::max(1e-12, std::hypot(la[0], la[1]));
-		return 0.5 * (da * fa + db * fb);
-	}
-	// Depth in camera a of the midpoint of the two rays; false when behind either camera.
-	bool depth(const cv::Point2d &na, const cv::Point2d &nb, double *ret) const
-	{
-		cv::Vec3d p;
-		if (!point(na, nb, &p))
-			return false;
-		*ret = p[2];
-		return true;
-	}
-	// The midpoint of the two rays in camera a's frame, mm; false when behind either camera.
-	bool point(const cv::Point2d &na, const cv::Point2d &nb, cv::Vec3d *ret) const
-	{
-		cv::Vec3d da(na.x, na.y, 1), ob = -(R.t() * t), db = R.t() * cv::Vec3d(nb.x, nb.y, 1);
-		double a = da.dot(da), b = da.dot(db), c = db.dot(db);
-		cv::Vec3d w = -ob;
-		double d = da.dot(w), e = db.dot(w);
-		double den = a * c - b * b;
-		if (std::abs(den) < 1e-12)
-			return false;
-		double s = (b * e - c * d) / den, u = (a * e - b * d) / den;
-		if (s <= 0 || u <= 0)
-			return false;
-		*ret = 0.5 * (s * da + (ob + u * db));
-		return true;
-	}
-};
+// The midpoint of the two rays in camera a's frame, mm; false when behind either camera.
+bool ray_point(const PairGeometry &g, const cv::Point2d &na, const cv::Point2d &nb, cv::Vec3d *ret)
+{
+	cv::Vec3d da(na.x, na.y, 1), ob = -(g.R.t() * g.t), db = g.R.t() * cv::Vec3d(nb.x, nb.y, 1);
+	double a = da.dot(da), b = da.dot(db), c = db.dot(db);
+	cv::Vec3d w = -ob;
+	double d = da.dot(w), e = db.dot(w);
+	double den = a * c - b * b;
+	if (std::abs(den) < 1e-12)
+		return false;
+	double s = (b * e - c * d) / den, u = (a * e - b * d) / den;
+	if (s <= 0 || u <= 0)
+		return false;
+	*ret = 0.5 * (s * da + (ob + u * db));
+	return true;
+}
+
+// Depth in camera a of the midpoint of the two rays; false when behind either camera.
+bool ray_depth(const PairGeometry &g, const cv::Point2d &na, const cv::Point2d &nb, double *ret)
+{
+	cv::Vec3d p;
+	if (!ray_point(g, na, nb, &p))
+		return false;
+	*ret = p[2];
+	return true;
+}
+
+// -EINVAL unless `g` holds the features of exactly these detections and every match (when given)
+// names squares and a feature that exist.
+Status check_inputs(const char *who, const CameraDetections &a, const CameraDetections &b,
+		    const PairGeometry &g, const PairMatches *pm)
+{
+	if (g.na.size() != a.squares.size() * kFeatureCount || g.nb.size() != b.squares.size() * kFeatureCount)
+		return Status::error(EINVAL, std::string(who) + ": the pair geometry is not of these detections (" +
+						     std::to_string(g.na.size()) + " and " + std::to_string(g.nb.size()) +
+						     " features for " + std::to_string(a.squares.size()) + " and " +
+						     std::to_string(b.squares.size()) + " squares)");
+	if (!pm)
+		return Status::error(EINVAL, std::string(who) + ": no matches to work on");
+	for (const PointMatch &m : pm->matches)
+		if (m.square_a < 0 || size_t(m.square_a) >= a.squares.size() || m.square_b < 0 ||
+		    size_t(m.square_b) >= b.squares.size() || m.feature < kCentroid || m.feature >= kFeatureCount)
+			return Status::error(EINVAL, std::string(who) + ": a match names square " +
+							     std::to_string(m.square_a) + " / " + std::to_string(m.square_b) +
+							     " feature " + std::to_string(m.feature) +
+							     ", not in these detections");
+	return {};
+}
 
 // Connected parts of a camera's decoded grid: squares linked by neighbours whose cells agree.
 std::vector<int> grid_parts(const CameraDetections &d, int cols)
@@ -102,40 +124,68 @@ std::vector<int> grid_parts(const CameraDetections &d, int cols)
 	return part;
 }
 
-// Matching the squares the code did not match (stages 4b-4d). The code only serves to find
-// where a square is in the other view; a square whose code word could not be read (a missing
-// neighbour, a dim or mixed colour in a projector seam, a slide border cell) or whose grid links
-// are broken (around a nostril, a lip, an eyelid) is still the same surface patch in both views,
-// and can be found from the squares already matched around it:
-//  - growing: once a square is matched, its grid neighbour in direction d in camera a and the
-//    neighbour in direction d of its partner in camera b are the same projected square, when
-//    every neighbour already matched agrees;
-//  - guiding: the matched squares around a square of camera a bound its depth, and along its
-//    epipolar line in camera b exactly one unmatched square may lie in that range (and it must
-//    not be the only candidate of another square of a);
-//  - seeding: a part of the grid that neither reaches (cut off, no complete word) is entered
-//    from the one candidate pair whose trial growth pairs many squares with agreeing letters.
-// Every way the pair must pass the same tests (compatible()): letters and cells do not
-// contradict, the epipolar line and a plausible depth. Once all are matched, prune_off_surface()
-// drops those that lie off the surface their neighbours describe.
-template <typename AddMatch>
-class Extension {
+// The matching of one pair as a sub-stage finds it and adds to it: who is matched to whom (from
+// the matches so far), and the tests every way of matching a square holds a pair to. Stages 4b-4d
+// (see image_stages.hpp): growing, guiding and seeding all pass a candidate through compatible()
+// (letters and cells do not contradict, the epipolar line, a plausible depth) and add it through
+// add_square() (its corners too, when they agree).
+class PairMatcher {
 public:
-	Extension(const CameraDetections &a, const CameraDetections &b, const Geometry &g,
-		  const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb, const MatchParams &params,
-		  std::vector<int> *match_of_a, std::vector<int> *match_of_b, AddMatch add_square_match)
-		: a_(a), b_(b), g_(g), na_(na), nb_(nb), params_(params), match_of_a_(*match_of_a),
-		  match_of_b_(*match_of_b), add_(add_square_match)
+	PairMatcher(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		    const PairCheckParams &check, PairMatches *pm)
+		: a_(a), b_(b), g_(g), check_(check), pm_(*pm), match_of_a_(a.squares.size(), -1),
+		  match_of_b_(b.squares.size(), -1)
 	{
-		std::vector<double> links;
-		for (const Square &s : a.squares)
-			for (int j : s.neighbours)
-				if (j >= 0)
-					links.push_back(cv::norm(s.centroid - a.squares[size_t(j)].centroid));
-		if (!links.empty()) {
-			std::nth_element(links.begin(), links.begin() + long(links.size() / 2), links.end());
-			radius_ = params.guide_radius_pitches * links[links.size() / 2];
+		for (const PointMatch &m : pm->matches) {
+			match_of_a_[size_t(m.square_a)] = m.square_b;
+			match_of_b_[size_t(m.square_b)] = m.square_a;
 		}
+	}
+
+	// The square pair (i, j) as matches (centroid, and corners when both views have them), or
+	// false when a corner is off its epipolar line: a square cut differently in the two views
+	// (an occluding contour, a shadow seen from one side) is not the same surface patch, so
+	// none of its features is trusted.
+	bool add_square(size_t i, int j, bool grown)
+	{
+		const Square &sa = a_.squares[i], &sb = b_.squares[size_t(j)];
+		const bool corners = check_.corners && sa.has_corners && sb.has_corners;
+		for (int k = 0; corners && k < 4; k++) {
+			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
+			if (epipolar(g_, g_.na[fa], g_.nb[fb]) > check_.max_corner_epipolar_px)
+				return false;
+		}
+		PointMatch pm;
+		pm.square_a = int(i);
+		pm.square_b = j;
+		pm.cell = sa.cell >= 0 ? sa.cell : sb.cell;
+		pm.grown = grown;
+		pm.feature = kCentroid;
+		pm.a = sa.centroid;
+		pm.b = sb.centroid;
+		pm_.matches.push_back(pm);
+		for (int k = 0; corners && k < 4; k++) {
+			pm.feature = kTopLeft + k;
+			pm.a = sa.corners[size_t(k)];
+			pm.b = sb.corners[size_t(k)];
+			pm_.matches.push_back(pm);
+		}
+		match_of_a_[i] = j;
+		match_of_b_[size_t(j)] = int(i);
+		return true;
+	}
+
+	/// The squares of camera a matched so far, in the order they were matched.
+	std::vector<size_t> matched() const
+	{
+		std::vector<size_t> out;
+		std::vector<char> listed(a_.squares.size(), 0);
+		for (const PointMatch &m : pm_.matches)
+			if (!listed[size_t(m.square_a)]) {
+				listed[size_t(m.square_a)] = 1;
+				out.push_back(size_t(m.square_a));
+			}
+		return out;
 	}
 
 	/// Grows from the matched squares `queue` of camera a; returns how many it added.
@@ -152,7 +202,7 @@ public:
 				if (i2 < 0 || j2 < 0 || match_of_a_[size_t(i2)] >= 0 || match_of_b_[size_t(j2)] >= 0)
 					continue;
 				if (!topology_agrees(size_t(i2), j2) || !compatible(size_t(i2), j2, nullptr) ||
-				    !accept(size_t(i2), j2))
+				    !add_square(size_t(i2), j2, true))
 					continue;
 				added++;
 				queue.push_back(size_t(i2));
@@ -161,9 +211,19 @@ public:
 		return added;
 	}
 
-	/// One round of guided matching; returns the squares of camera a it matched.
-	std::vector<size_t> guide()
+	/// One round of guided matching; returns how many squares it matched.
+	int guide(const GuideParams &params)
 	{
+		double radius = 0; // in camera a's pixels
+		std::vector<double> links;
+		for (const Square &s : a_.squares)
+			for (int j : s.neighbours)
+				if (j >= 0)
+					links.push_back(cv::norm(s.centroid - a_.squares[size_t(j)].centroid));
+		if (!links.empty()) {
+			std::nth_element(links.begin(), links.begin() + long(links.size() / 2), links.end());
+			radius = params.radius_pitches * links[links.size() / 2];
+		}
 		const std::vector<double> depth = matched_depths();
 		std::vector<int> choice(a_.squares.size(), -1), chosen_by(b_.squares.size(), 0);
 		for (size_t i = 0; i < a_.squares.size(); i++) {
@@ -172,18 +232,18 @@ public:
 			double lo = 1e300, hi = -1e300;
 			int around = 0;
 			for (size_t k = 0; k < a_.squares.size(); k++)
-				if (depth[k] > 0 && near(i, k)) {
+				if (depth[k] > 0 && cv::norm(a_.squares[k].centroid - a_.squares[i].centroid) <= radius) {
 					lo = std::min(lo, depth[k]);
 					hi = std::max(hi, depth[k]);
 					around++;
 				}
-			if (around < params_.guide_min_around)
+			if (around < params.min_around)
 				continue;
 			int found = -1, count = 0;
 			for (size_t j = 0; j < b_.squares.size(); j++) {
 				double z = 0;
-				if (match_of_b_[j] >= 0 || !compatible(i, int(j), &z) ||
-				    z < lo - params_.guide_depth_margin_mm || z > hi + params_.guide_depth_margin_mm)
+				if (match_of_b_[j] >= 0 || !compatible(i, int(j), &z) || z < lo - params.depth_margin_mm ||
+				    z > hi + params.depth_margin_mm)
 					continue;
 				found = int(j);
 				count++;
@@ -193,23 +253,16 @@ public:
 				chosen_by[size_t(found)]++;
 			}
 		}
-		std::vector<size_t> out;
+		int added = 0;
 		for (size_t i = 0; i < a_.squares.size(); i++)
-			if (choice[i] >= 0 && chosen_by[size_t(choice[i])] == 1 && accept(i, choice[i]))
-				out.push_back(i);
-		return out;
+			if (choice[i] >= 0 && chosen_by[size_t(choice[i])] == 1 && add_square(i, choice[i], true))
+				added++;
+		return added;
 	}
 
-	/// Seeds growth in parts of the grid that neither a code word nor a matched neighbour reaches
-	/// (a band of neck under the chin, two rows tall, where no word is complete): a candidate
-	/// pair of squares is tried by growing from it along both grids without committing; the
-	/// letters it would pair must agree on every square where both are known, and only a seed
-	/// whose growth pairs at least `seed_min_support` such squares, far more than any other
-	/// candidate for the same square, is kept (a wrong candidate on the epipolar line pairs
-	/// letters at random, one in three). Depth stays within the range of the pair's matched
-	/// squares, widened by `seed_depth_margin_mm`. Each seed is grown from at once (adding to
-	/// *ret_grown); returns the number of seeds.
-	int seed(int *ret_grown)
+	/// Seeds growth (seed_matches in image_stages.hpp) and grows from each seed at once, adding
+	/// to *ret_grown; returns the number of seeds.
+	int seed(const SeedParams &params, int *ret_grown)
 	{
 		double lo = 1e300, hi = -1e300;
 		for (double z : matched_depths())
@@ -219,8 +272,8 @@ public:
 			}
 		if (lo > hi)
 			return 0;
-		lo -= params_.seed_depth_margin_mm;
-		hi += params_.seed_depth_margin_mm;
+		lo -= params.depth_margin_mm;
+		hi += params.depth_margin_mm;
 		struct Seed {
 			int support;
 			size_t i;
@@ -245,13 +298,13 @@ public:
 					second = std::max(second, support);
 				}
 			}
-			if (best >= params_.seed_min_support && second * 2 < best)
+			if (best >= params.min_support && second * 2 < best)
 				seeds.push_back({best, i, best_j});
 		}
 		std::sort(seeds.begin(), seeds.end(), [](const Seed &x, const Seed &y) { return x.support > y.support; });
 		int planted = 0;
 		for (const Seed &sd : seeds)
-			if (match_of_a_[sd.i] < 0 && match_of_b_[size_t(sd.j)] < 0 && accept(sd.i, sd.j)) {
+			if (match_of_a_[sd.i] < 0 && match_of_b_[size_t(sd.j)] < 0 && add_square(sd.i, sd.j, true)) {
 				planted++;
 				*ret_grown += grow({sd.i});
 			}
@@ -259,8 +312,6 @@ public:
 	}
 
 private:
-	bool accept(size_t i, int j) { return add_(i, j, true); }
-
 	// Depth (camera a, mm) of every matched square's centroid; -1 for the unmatched.
 	std::vector<double> matched_depths() const
 	{
@@ -268,7 +319,7 @@ private:
 		for (size_t i = 0; i < a_.squares.size(); i++) {
 			const int j = match_of_a_[i];
 			double z = 0;
-			if (j >= 0 && g_.depth(na_[i * kFeatureCount], nb_[size_t(j) * kFeatureCount], &z))
+			if (j >= 0 && ray_depth(g_, g_.na[i * kFeatureCount], g_.nb[size_t(j) * kFeatureCount], &z))
 				depth[i] = z;
 		}
 		return depth;
@@ -301,11 +352,6 @@ private:
 		return support;
 	}
 
-	bool near(size_t i, size_t k) const
-	{
-		return cv::norm(a_.squares[k].centroid - a_.squares[i].centroid) <= radius_;
-	}
-
 	// Every matched grid neighbour of i must be matched to j's neighbour on that side.
 	bool topology_agrees(size_t i, int j) const
 	{
@@ -324,14 +370,14 @@ private:
 		// Irregular squares (cut, bent, or two run together in a projector seam) are compared by
 		// centroid only: a cut that lies on the surface (a projector's frame edge, its shadow)
 		// looks the same from both cameras and so does its centroid; one that depends on the view
-		// (an occluding contour) moves the centroid, and prune_off_surface() drops it.
+		// (an occluding contour) moves the centroid, and prune_matches() drops it.
 		if ((sa.cell >= 0 && sb.cell >= 0 && sa.cell != sb.cell) ||
 		    (sa.letter >= 0 && sb.letter >= 0 && sa.letter != sb.letter))
 			return false;
-		const cv::Point2d &pa = na_[i * kFeatureCount], &pb = nb_[size_t(j) * kFeatureCount];
+		const cv::Point2d &pa = g_.na[i * kFeatureCount], &pb = g_.nb[size_t(j) * kFeatureCount];
 		double z = 0;
-		if (g_.epipolar(pa, pb) > params_.grow_max_epipolar_px || !g_.depth(pa, pb, &z) ||
-		    z < params_.min_depth_mm || z > params_.max_depth_mm)
+		if (epipolar(g_, pa, pb) > check_.max_uncoded_epipolar_px || !ray_depth(g_, pa, pb, &z) ||
+		    z < check_.min_depth_mm || z > check_.max_depth_mm)
 			return false;
 		if (ret_depth)
 			*ret_depth = z;
@@ -339,12 +385,10 @@ private:
 	}
 
 	const CameraDetections &a_, &b_;
-	const Geometry &g_;
-	const std::vector<cv::Point2d> &na_, &nb_;
-	const MatchParams &params_;
-	std::vector<int> &match_of_a_, &match_of_b_;
-	AddMatch add_;
-	double radius_ = 0;
+	const PairGeometry &g_;
+	const PairCheckParams &check_;
+	PairMatches &pm_;
+	std::vector<int> match_of_a_, match_of_b_;
 };
 
 // Distance from p to the quadric height field z = f(x, y) fitted, over the plane of best fit, to
@@ -388,7 +432,7 @@ double quadric_residual(const std::vector<cv::Vec3d> &points, const cv::Vec3d &p
 // ratio of i's matched grid neighbours (which carries the two views' foreshortening). Such a blob's
 // area centroid need not be the slide square's centre, so its match is held to a closer fit.
 bool cut_in_one_view(const CameraDetections &a, const CameraDetections &b, const std::vector<int> &partner,
-		     size_t i, int j, const MatchParams &params)
+		     size_t i, int j, const PruneParams &params)
 {
 	const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
 	if (sa.has_corners == sb.has_corners)
@@ -410,9 +454,10 @@ bool cut_in_one_view(const CameraDetections &a, const CameraDetections &b, const
 // `surface_radius_mm`): a wrong candidate along the epipolar line, or a centroid shifted by a cut
 // in one view. Judged after all matching, so the neighbourhood surrounds the square. Twice: a bad
 // square bends its neighbours' fits. Returns how many squares it removed.
-int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, const std::vector<cv::Point2d> &nb,
-		     const CameraDetections &a, const CameraDetections &b, const MatchParams &params, PairMatches *pm)
+int prune_off_surface(const PairGeometry &g, const CameraDetections &a, const CameraDetections &b,
+		      const PruneParams &params, PairMatches *pm)
 {
+	const std::vector<cv::Point2d> &na = g.na, &nb = g.nb;
 	const size_t squares_a = a.squares.size();
 	int removed = 0;
 	for (int pass = 0; pass < 2; pass++) {
@@ -420,8 +465,8 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 		std::vector<char> ok(pm->matches.size(), 0);
 		for (size_t m = 0; m < pm->matches.size(); m++) {
 			const PointMatch &x = pm->matches[m];
-			ok[m] = g.point(na[size_t(x.square_a) * kFeatureCount + size_t(x.feature)],
-					nb[size_t(x.square_b) * kFeatureCount + size_t(x.feature)], &pts[m]);
+			ok[m] = ray_point(g, na[size_t(x.square_a) * kFeatureCount + size_t(x.feature)],
+					  nb[size_t(x.square_b) * kFeatureCount + size_t(x.feature)], &pts[m]);
 		}
 		std::vector<char> drop_square_a(squares_a, 0);
 		// Squares matched by their centroid alone: no corner passed the epipolar test for them.
@@ -475,23 +520,36 @@ int prune_off_surface(const Geometry &g, const std::vector<cv::Point2d> &na, con
 
 } // namespace
 
-Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
-		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
-		  PairMatches *ret)
+Status pair_geometry(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
+		     const CameraModel &cb, PairGeometry *ret)
 {
 	if (ca.K(0, 0) <= 0 || cb.K(0, 0) <= 0 || ca.K(1, 1) <= 0 || cb.K(1, 1) <= 0)
-		return Status::error(EINVAL, "match_pair: camera intrinsics have no focal length");
-	const int cells = pattern.matrix.rows() * pattern.matrix.cols();
-	Geometry g;
+		return Status::error(EINVAL, "camera intrinsics have no focal length");
+	PairGeometry g;
 	g.R = cb.R * ca.R.t();
 	g.t = cb.T - g.R * ca.T;
 	if (cv::norm(g.t) < 1e-9)
-		return Status::error(EINVAL, "match_pair: the two cameras share their centre");
+		return Status::error(EINVAL, "the two cameras share their centre");
 	cv::Matx33d tx(0, -g.t[2], g.t[1], g.t[2], 0, -g.t[0], -g.t[1], g.t[0], 0);
 	g.E = tx * g.R;
 	g.fa = 0.5 * (ca.K(0, 0) + ca.K(1, 1));
 	g.fb = 0.5 * (cb.K(0, 0) + cb.K(1, 1));
-	std::vector<cv::Point2d> na = normalised(a, ca), nb = normalised(b, cb);
+	g.na = normalised(a, ca);
+	g.nb = normalised(b, cb);
+	*ret = std::move(g);
+	return {};
+}
+
+Status match_codes(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		   const Pattern &pattern, const PairCheckParams &check, const CodeMatchParams &params,
+		   PairMatches *ret)
+{
+	PairMatches out;
+	Status s = check_inputs("match_codes", a, b, g, &out);
+	if (!s.ok())
+		return s;
+	const int cells = pattern.matrix.rows() * pattern.matrix.cols();
+	const std::vector<cv::Point2d> &na = g.na, &nb = g.nb;
 
 	std::unordered_map<int, std::vector<int>> by_cell;
 	for (size_t j = 0; j < b.squares.size(); j++)
@@ -517,8 +575,8 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		for (int j : it->second) {
 			const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
 			double z = 0;
-			bool ok = g.epipolar(pa, pb) <= params.max_epipolar_px && g.depth(pa, pb, &z) &&
-				  z >= params.min_depth_mm && z <= params.max_depth_mm;
+			bool ok = epipolar(g, pa, pb) <= params.max_epipolar_px && ray_depth(g, pa, pb, &z) &&
+				  z >= check.min_depth_mm && z <= check.max_depth_mm;
 			cands.push_back({int(i), j, ok});
 			auto &t = tally[{comp_a[i], comp_b[size_t(j)]}];
 			t.first += ok;
@@ -533,7 +591,6 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 		return t.first >= std::min(params.min_part_support, t.second) &&
 		       t.first >= params.min_part_agreement * t.second;
 	};
-	PairMatches out;
 	out.cam_a = a.camera;
 	out.cam_b = b.camera;
 	std::vector<int> partner(a.squares.size(), -1), valid(a.squares.size(), 0), seen(a.squares.size(), 0);
@@ -558,39 +615,7 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 			taken[size_t(partner[i])]++;
 		}
 	}
-	// The square pair (i, j) as matches (centroid, and corners when both views have them), or
-	// false when a corner is off its epipolar line: a square cut differently in the two views
-	// (an occluding contour, a shadow seen from one side) is not the same surface patch, so
-	// none of its features is trusted.
-	std::vector<int> match_of_a(a.squares.size(), -1), match_of_b(b.squares.size(), -1);
-	auto add_square_match = [&](size_t i, int j, bool grown) {
-		const Square &sa = a.squares[i], &sb = b.squares[size_t(j)];
-		const bool corners = params.corners && sa.has_corners && sb.has_corners;
-		for (int k = 0; corners && k < 4; k++) {
-			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
-			if (g.epipolar(na[fa], nb[fb]) > params.max_corner_epipolar_px)
-				return false;
-		}
-		PointMatch pm;
-		pm.square_a = int(i);
-		pm.square_b = j;
-		pm.cell = sa.cell >= 0 ? sa.cell : sb.cell;
-		pm.grown = grown;
-		pm.feature = kCentroid;
-		pm.a = sa.centroid;
-		pm.b = sb.centroid;
-		out.matches.push_back(pm);
-		for (int k = 0; corners && k < 4; k++) {
-			pm.feature = kTopLeft + k;
-			pm.a = sa.corners[size_t(k)];
-			pm.b = sb.corners[size_t(k)];
-			out.matches.push_back(pm);
-		}
-		match_of_a[i] = j;
-		match_of_b[size_t(j)] = int(i);
-		return true;
-	};
-	std::vector<size_t> seeds;
+	PairMatcher matcher(a, b, g, check, &out);
 	for (size_t i = 0; i < a.squares.size(); i++) {
 		int j = partner[i];
 		if (j < 0)
@@ -599,26 +624,85 @@ Status match_pair(const CameraDetections &a, const CameraDetections &b, const Ca
 			out.rejected_ambiguous++;
 			continue;
 		}
-		if (!add_square_match(i, j, false)) {
+		if (!matcher.add_square(i, j, false))
 			out.rejected_epipolar++;
-			continue;
-		}
-		seeds.push_back(i);
 	}
-	Extension extend(a, b, g, na, nb, params, &match_of_a, &match_of_b, add_square_match);
-	if (params.grow)
-		out.grown += extend.grow(seeds);
-	for (int round = 0; params.guide && round < params.guide_rounds; round++) {
-		std::vector<size_t> found = extend.guide();
-		if (found.empty())
+	*ret = std::move(out);
+	return {};
+}
+
+Status grow_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		    const PairCheckParams &check, const GrowParams &params, PairMatches *matches)
+{
+	Status s = check_inputs("grow_matches", a, b, g, matches);
+	if (!s.ok() || !params.enabled)
+		return s;
+	// Every square matched before has had its neighbours tried already, with fewer matches
+	// around them; matches are only added, so they find nothing new and only the latest grow.
+	PairMatcher matcher(a, b, g, check, matches);
+	matches->grown += matcher.grow(matcher.matched());
+	return {};
+}
+
+Status guide_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		     const PairCheckParams &check, const GuideParams &params, PairMatches *matches)
+{
+	Status s = check_inputs("guide_matches", a, b, g, matches);
+	if (!s.ok() || !params.enabled)
+		return s;
+	PairMatcher matcher(a, b, g, check, matches);
+	matches->guided += matcher.guide(params);
+	return {};
+}
+
+Status seed_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		    const PairCheckParams &check, const SeedParams &params, PairMatches *matches)
+{
+	Status s = check_inputs("seed_matches", a, b, g, matches);
+	if (!s.ok() || !params.enabled)
+		return s;
+	PairMatcher matcher(a, b, g, check, matches);
+	int grown = 0;
+	matches->seeded += matcher.seed(params, &grown);
+	matches->grown += grown;
+	return {};
+}
+
+Status prune_matches(const CameraDetections &a, const CameraDetections &b, const PairGeometry &g,
+		     const PruneParams &params, PairMatches *matches)
+{
+	Status s = check_inputs("prune_matches", a, b, g, matches);
+	if (!s.ok())
+		return s;
+	matches->pruned += prune_off_surface(g, a, b, params, matches);
+	return {};
+}
+
+Status match_pair(const CameraDetections &a, const CameraDetections &b, const CameraModel &ca,
+		  const CameraModel &cb, const Pattern &pattern, const MatchParams &params,
+		  PairMatches *ret)
+{
+	PairGeometry g;
+	Status s = pair_geometry(a, b, ca, cb, &g);
+	if (!s.ok())
+		return Status::error(s.code(), "match_pair: " + s.message());
+	PairMatches out;
+	s = match_codes(a, b, g, pattern, params.check, params.code, &out);
+	if (s.ok())
+		s = grow_matches(a, b, g, params.check, params.grow, &out);
+	for (int round = 0; s.ok() && round < params.guide.rounds; round++) {
+		const int guided = out.guided;
+		s = guide_matches(a, b, g, params.check, params.guide, &out);
+		if (!s.ok() || out.guided == guided)
 			break;
-		out.guided += int(found.size());
-		if (params.grow)
-			out.grown += extend.grow(found);
+		s = grow_matches(a, b, g, params.check, params.grow, &out);
 	}
-	if (params.seed)
-		out.seeded = extend.seed(&out.grown);
-	out.pruned = prune_off_surface(g, na, nb, a, b, params, &out);
+	if (s.ok())
+		s = seed_matches(a, b, g, params.check, params.seed, &out);
+	if (s.ok())
+		s = prune_matches(a, b, g, params.prune, &out);
+	if (!s.ok())
+		return s;
 	*ret = std::move(out);
 	return {};
 }

@@ -31,7 +31,7 @@ struct Square {
 	/// Its shape disagrees with its grid neighbours' (cut by a shadow or an occluding edge, bent
 	/// over a lip, two squares run together in a projector seam): its corners are not surface points
 	/// of the slide's square. Not matched by its code; growing and guided matching (match.cpp) may
-	/// match its centroid, which prune_off_surface checks against the surface around it.
+	/// match its centroid, which prune_matches checks against the surface around it.
 	bool irregular = false;
 	double area = 0;	// pixels
 };

@@ -292,8 +292,8 @@ static void grows_to_squares_without_code(void **)
 			d.squares[i].cell = -1;
 		}
 	MatchParams code_only, grow_only;
-	code_only.grow = code_only.guide = code_only.seed = false;
-	grow_only.guide = grow_only.seed = false;
+	code_only.grow.enabled = code_only.guide.enabled = code_only.seed.enabled = false;
+	grow_only.guide.enabled = grow_only.seed.enabled = false;
 	PairMatches before, grown, after;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, code_only, &before).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, grow_only, &grown).ok());
@@ -412,7 +412,7 @@ static void seeds_growth_where_no_code_reaches(void **)
 	// Guided matching would reach this band from the squares beside it in the image (its depth
 	// follows theirs here); off, so that only seeding can.
 	MatchParams seeding, no_seed;
-	seeding.guide = no_seed.guide = no_seed.seed = false;
+	seeding.guide.enabled = no_seed.guide.enabled = no_seed.seed.enabled = false;
 	PairMatches without, with;
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, no_seed, &without).ok());
 	assert_true(match_pair(s.dets[0], s.dets[1], cams[0], cams[1], p, seeding, &with).ok());
@@ -476,6 +476,288 @@ static void isolated_irregular_square_is_dropped(void **)
 	}
 }
 
+// ---- the sub-stages one at a time (issue 11) --------------------------------------------------
+
+// The square of camera c showing `cell` of slide copy `copy`, or -1.
+static int square_of(const Scene &s, size_t c, int copy, int cell)
+{
+	for (size_t i = 0; i < s.cell_of[c].size(); i++)
+		if (s.copy_of[c][i] == copy && s.cell_of[c][i] == cell)
+			return int(i);
+	return -1;
+}
+
+// The partner in camera b of square i of camera a, or -1.
+static int partner_of(const PairMatches &pm, int i)
+{
+	for (const PointMatch &m : pm.matches)
+		if (m.square_a == i)
+			return m.square_b;
+	return -1;
+}
+
+// Where camera b sees the point `mm` farther along camera a's ray through pa than the surface
+// point that pa and pb show (their rays' midpoint): on pa's epipolar line, off the surface.
+static cv::Point2d farther_in_b(const std::vector<CameraModel> &cams, const cv::Point2d &pa,
+				const cv::Point2d &pb, double mm)
+{
+	std::vector<cv::Point2d> ua, ub;
+	cv::undistortPoints(std::vector<cv::Point2d>{pa}, ua, cv::Mat(cams[0].K), cv::Mat(cams[0].dist));
+	cv::undistortPoints(std::vector<cv::Point2d>{pb}, ub, cv::Mat(cams[1].K), cv::Mat(cams[1].dist));
+	const cv::Matx33d R = cams[1].R * cams[0].R.t();
+	const cv::Vec3d t = cams[1].T - R * cams[0].T;
+	// Midpoint of the rays s·da and ob + u·db in camera a's frame (least squares in s, u).
+	const cv::Vec3d da(ua[0].x, ua[0].y, 1), ob = -(R.t() * t), db = R.t() * cv::Vec3d(ub[0].x, ub[0].y, 1);
+	const cv::Matx22d A(da.dot(da), -da.dot(db), -da.dot(db), db.dot(db));
+	const cv::Vec2d su = A.solve(cv::Vec2d(da.dot(ob), -db.dot(ob)), cv::DECOMP_LU);
+	cv::Vec3d xa = 0.5 * (su[0] * da + ob + su[1] * db);
+	xa += mm * cv::normalize(xa);
+	const cv::Vec3d world = cams[0].R.t() * (xa - cams[0].T);
+	std::vector<cv::Point2d> px;
+	cv::Mat rvec;
+	cv::Rodrigues(cv::Mat(cams[1].R), rvec);
+	cv::projectPoints(std::vector<cv::Point3d>{cv::Point3d(world)}, rvec, cv::Mat(cams[1].T), cv::Mat(cams[1].K),
+			  cv::Mat(cams[1].dist), px);
+	return px[0];
+}
+
+// Cuts square i of camera c out of the grid (its links both ways) and erases its code word:
+// neither growing nor match_codes reaches it.
+static void isolate(Scene *s, size_t c, size_t i)
+{
+	std::vector<Square> &sq = s->dets[c].squares;
+	for (int &j : sq[i].neighbours)
+		if (j >= 0) {
+			for (int &back : sq[size_t(j)].neighbours)
+				if (back == int(i))
+					back = -1;
+			j = -1;
+		}
+	sq[i].cell = -1;
+}
+
+static PairGeometry geometry_of(const Stereo &st, const Scene &s)
+{
+	PairGeometry g;
+	assert_true(pair_geometry(s.dets[0], s.dets[1], st.cams[0], st.cams[1], &g).ok());
+	assert_int_equal(g.na.size(), s.dets[0].squares.size() * kFeatureCount);
+	return g;
+}
+
+// 4 (code): the grid-part agreement. A square of a wrong copy in b, moved onto the epipolar line
+// of a square of camera a at a plausible depth (30 mm behind the face) where the right square
+// went undetected, passes every test of its own; only its grid part, whose other shared cells are
+// all off their lines, tells it is another copy. Refused; with the agreement off it is taken.
+static void code_match_refuses_a_wrong_copy(void **)
+{
+	Stereo st = stereo_scene(13);
+	Scene &s = st.s;
+	const int cols = st.p.matrix.cols();
+	int cell = -1, ia = -1, right = -1, wrong = -1;
+	for (int r = 3; r + 3 < st.p.matrix.rows() && cell < 0; r++)
+		for (int c = 3; c + 3 < cols && cell < 0; c++)
+			for (int copy : {0, 2}) {
+				ia = square_of(s, 0, 1, r * cols + c);
+				right = square_of(s, 1, 1, r * cols + c);
+				wrong = square_of(s, 1, copy, r * cols + c);
+				if (ia >= 0 && right >= 0 && wrong >= 0) {
+					cell = r * cols + c;
+					break;
+				}
+			}
+	assert_true(cell >= 0);
+	Square &qw = s.dets[1].squares[size_t(wrong)];
+	qw.centroid = farther_in_b(st.cams, s.dets[0].squares[size_t(ia)].centroid,
+				   s.dets[1].squares[size_t(right)].centroid, 30);
+	qw.has_corners = false;
+	s.dets[1].squares[size_t(right)].cell = -1; // the right square's word unread
+	const PairGeometry g = geometry_of(st, s);
+	PairMatches pm, careless;
+	assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+	CodeMatchParams no_agreement;
+	no_agreement.min_part_agreement = 0;
+	no_agreement.min_part_support = 0;
+	assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, no_agreement, &careless).ok());
+	const Outcome o = check(s, pm), oc = check(s, careless);
+	std::printf("code matching: %d square matches, %d wrong; the wrong copy's square on the line: "
+		    "partner %d (agreement on), %d (off; it is square %d)\n",
+		    o.centroids, o.wrong, partner_of(pm, ia), partner_of(careless, ia), wrong);
+	assert_int_equal(partner_of(pm, ia), -1);
+	assert_int_equal(o.wrong, 0);
+	assert_true(o.centroids >= int(0.95 * o.possible) - 1);
+	assert_int_equal(pm.grown + pm.guided + pm.seeded + pm.pruned, 0);
+	assert_int_equal(partner_of(careless, ia), wrong);
+	assert_int_equal(oc.wrong, 1);
+
+	// Mismatched inputs are an error, not a guess.
+	PairGeometry other = g;
+	other.nb.pop_back();
+	assert_false(match_codes(s.dets[0], s.dets[1], other, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+}
+
+// 4b: a square whose code word is unread in both views, between matched neighbours, is grown to
+// its right partner; one whose letter contradicts its partner's is not.
+static void grow_matches_a_square_without_code(void **)
+{
+	Stereo st = stereo_scene(15);
+	Scene &s = st.s;
+	const int cell = 7 * st.p.matrix.cols() + 9;
+	const int ia = square_of(s, 0, 1, cell), ib = square_of(s, 1, 1, cell);
+	assert_true(ia >= 0 && ib >= 0);
+	s.dets[0].squares[size_t(ia)].cell = s.dets[1].squares[size_t(ib)].cell = -1;
+	const PairGeometry g = geometry_of(st, s);
+	PairMatches pm;
+	assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+	assert_int_equal(partner_of(pm, ia), -1);
+	const int by_code = check(s, pm).centroids;
+	assert_true(grow_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, GrowParams{}, &pm).ok());
+	std::printf("grow: square without code %s (%d grown)\n", partner_of(pm, ia) == ib ? "matched" : "missed",
+		    pm.grown);
+	assert_int_equal(partner_of(pm, ia), ib);
+	assert_int_equal(pm.grown, 1);
+	assert_int_equal(check(s, pm).centroids, by_code + 1);
+	assert_int_equal(check(s, pm).wrong, 0);
+	const PointMatch &m = *std::find_if(pm.matches.begin(), pm.matches.end(),
+					    [&](const PointMatch &x) { return x.square_a == ia; });
+	assert_true(m.grown);
+	assert_int_equal(m.cell, -1);
+
+	// Its letter read differently in b: a different square, never grown to.
+	Square &qb = s.dets[1].squares[size_t(ib)];
+	qb.letter = (qb.letter + 1) % st.p.matrix.letters();
+	PairMatches contra;
+	assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &contra).ok());
+	assert_true(grow_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, GrowParams{}, &contra).ok());
+	assert_int_equal(partner_of(contra, ia), -1);
+	assert_int_equal(contra.grown, 0);
+
+	// Disabled, it adds nothing.
+	PairMatches off;
+	GrowParams no_growth;
+	no_growth.enabled = false;
+	qb.letter = (qb.letter + st.p.matrix.letters() - 1) % st.p.matrix.letters();
+	assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &off).ok());
+	assert_true(grow_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, no_growth, &off).ok());
+	assert_int_equal(off.grown, 0);
+}
+
+// 4c: a square cut out of both grids and without a code word (neither code nor growth reach it)
+// is matched when its partner lies on its epipolar line within its matched neighbours' depth
+// range; moved 30 mm behind the face along that line (depth range ± 8 mm) it is not.
+static void guide_matches_within_the_neighbours_depth(void **)
+{
+	for (double behind_mm : {0.0, 30.0}) {
+		Stereo st = stereo_scene(17);
+		Scene &s = st.s;
+		const int cell = 7 * st.p.matrix.cols() + 9;
+		const int ia = square_of(s, 0, 1, cell), ib = square_of(s, 1, 1, cell);
+		assert_true(ia >= 0 && ib >= 0);
+		isolate(&s, 0, size_t(ia));
+		isolate(&s, 1, size_t(ib));
+		Square &qb = s.dets[1].squares[size_t(ib)];
+		if (behind_mm > 0) {
+			qb.centroid = farther_in_b(st.cams, s.dets[0].squares[size_t(ia)].centroid, qb.centroid, behind_mm);
+			qb.has_corners = false;
+		}
+		const PairGeometry g = geometry_of(st, s);
+		PairMatches pm;
+		assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+		assert_true(grow_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, GrowParams{}, &pm).ok());
+		assert_int_equal(partner_of(pm, ia), -1);
+		assert_true(guide_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, GuideParams{}, &pm).ok());
+		std::printf("guide: partner %.0f mm behind the face: %s (%d guided)\n", behind_mm,
+			    partner_of(pm, ia) == ib ? "matched" : "not matched", pm.guided);
+		assert_int_equal(partner_of(pm, ia), behind_mm > 0 ? -1 : ib);
+		assert_int_equal(pm.guided, behind_mm > 0 ? 0 : 1);
+		assert_int_equal(check(s, pm).wrong, 0);
+	}
+}
+
+// 4d: an island of 3 × 3 squares cut out of both grids, without code words (nothing else reaches
+// it), is entered from the one candidate pair whose trial growth pairs agreeing letters, and
+// grown through; with its letters unread there is nothing to check a seed by.
+static void seed_matches_enter_an_island(void **)
+{
+	for (bool letters : {true, false}) {
+		Stereo st = stereo_scene(19);
+		Scene &s = st.s;
+		const int cols = st.p.matrix.cols(), centre = 7 * cols + 9;
+		std::vector<std::pair<int, int>> island; // (square in a, its partner in b)
+		for (size_t c = 0; c < 2; c++) {
+			std::vector<Square> &sq = s.dets[c].squares;
+			auto inside = [&](size_t i) {
+				const int dr = s.cell_of[c][i] / cols - centre / cols, dc = s.cell_of[c][i] % cols - centre % cols;
+				return s.copy_of[c][i] == 1 && std::abs(dr) <= 1 && std::abs(dc) <= 1;
+			};
+			for (size_t i = 0; i < sq.size(); i++) {
+				if (!inside(i))
+					continue;
+				sq[i].cell = -1;
+				sq[i].letter = letters ? sq[i].letter : -1;
+				for (int &j : sq[i].neighbours)
+					if (j >= 0 && !inside(size_t(j))) {
+						for (int &back : sq[size_t(j)].neighbours)
+							if (back == int(i))
+								back = -1;
+						j = -1;
+					}
+				if (c == 0)
+					island.emplace_back(int(i), square_of(s, 1, 1, s.cell_of[0][i]));
+			}
+		}
+		assert_int_equal(island.size(), 9);
+		const PairGeometry g = geometry_of(st, s);
+		PairMatches pm;
+		assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+		assert_true(grow_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, GrowParams{}, &pm).ok());
+		for (const auto &[ia, ib] : island) {
+			assert_true(ib >= 0);
+			assert_int_equal(partner_of(pm, ia), -1);
+		}
+		const int grown = pm.grown;
+		assert_true(seed_matches(s.dets[0], s.dets[1], g, PairCheckParams{}, SeedParams{}, &pm).ok());
+		int found = 0;
+		for (const auto &[ia, ib] : island)
+			found += partner_of(pm, ia) == ib;
+		std::printf("seed: island of 9 squares without code or links, letters %s: %d matched (%d seeded, "
+			    "%d grown from them)\n",
+			    letters ? "read" : "unread", found, pm.seeded, pm.grown - grown);
+		assert_int_equal(found, letters ? 9 : 0);
+		assert_int_equal(pm.seeded, letters ? 1 : 0);
+		assert_int_equal(pm.grown - grown, letters ? 8 : 0);
+		assert_int_equal(check(s, pm).wrong, 0);
+	}
+}
+
+// 4e: a square matched by its centroid alone (no corners to check it by), its partner in b moved
+// along the epipolar line so that the pair lies 4 mm behind the face (more than the 2.5 mm
+// limit): pruned; 1 mm behind: kept. Nothing else is touched (every other match has corners).
+static void prune_matches_off_the_surface(void **)
+{
+	for (double behind_mm : {1.0, 4.0}) {
+		Stereo st = stereo_scene(21);
+		Scene &s = st.s;
+		const int cell = 7 * st.p.matrix.cols() + 9;
+		const int ia = square_of(s, 0, 1, cell), ib = square_of(s, 1, 1, cell);
+		assert_true(ia >= 0 && ib >= 0);
+		Square &qa = s.dets[0].squares[size_t(ia)], &qb = s.dets[1].squares[size_t(ib)];
+		qb.centroid = farther_in_b(st.cams, qa.centroid, qb.centroid, behind_mm);
+		qa.has_corners = qb.has_corners = false;
+		const PairGeometry g = geometry_of(st, s);
+		PairMatches pm;
+		assert_true(match_codes(s.dets[0], s.dets[1], g, st.p, PairCheckParams{}, CodeMatchParams{}, &pm).ok());
+		assert_int_equal(partner_of(pm, ia), ib);
+		const size_t before = pm.matches.size();
+		assert_true(prune_matches(s.dets[0], s.dets[1], g, PruneParams{}, &pm).ok());
+		const bool pruned = behind_mm > 2.5;
+		std::printf("prune: centroid-only match %.0f mm behind the face: %s (%d pruned)\n", behind_mm,
+			    partner_of(pm, ia) == ib ? "kept" : "pruned", pm.pruned);
+		assert_int_equal(partner_of(pm, ia), pruned ? -1 : ib);
+		assert_int_equal(pm.pruned, pruned ? 1 : 0);
+		assert_int_equal(pm.matches.size(), before - (pruned ? 1 : 0));
+	}
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -483,6 +765,11 @@ int main(void)
 		cmocka_unit_test(grows_to_squares_without_code),
 		cmocka_unit_test(seeds_growth_where_no_code_reaches),
 		cmocka_unit_test(isolated_irregular_square_is_dropped),
+		cmocka_unit_test(code_match_refuses_a_wrong_copy),
+		cmocka_unit_test(grow_matches_a_square_without_code),
+		cmocka_unit_test(guide_matches_within_the_neighbours_depth),
+		cmocka_unit_test(seed_matches_enter_an_island),
+		cmocka_unit_test(prune_matches_off_the_surface),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
