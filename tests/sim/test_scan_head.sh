@@ -11,6 +11,11 @@ fail=0
 FACESCAN_SCAN_HEAD=/nonexistent "$bin" simulate --head scan --scale 0.2 --out "$out/none" 2>"$out/err"; rc=$?
 [ $rc -eq 1 ] && grep -q 'install-web-deps.sh scan' "$out/err" ||
 	{ echo "FAIL: --head scan without the scan exited $rc, want 1 naming the fetch"; cat "$out/err"; fail=1; }
+# A FIFO where the volume should be is refused, not waited on (no writer ever comes).
+mkdir "$out/fifo" && echo "8 8 8 1 1 1" >"$out/fifo/volume.txt" && mkfifo "$out/fifo/volume.raw"
+FACESCAN_SCAN_HEAD=$out/fifo timeout 20 "$bin" simulate --head scan --scale 0.2 --out "$out/f" 2>"$out/err"; rc=$?
+[ $rc -eq 1 ] && grep -q 'not a regular file' "$out/err" ||
+	{ echo "FAIL: --head scan with a FIFO for volume.raw exited $rc, want 1 (124: it waited)"; cat "$out/err"; fail=1; }
 if [ ! -s "$data/volume.raw" ]; then
 	echo "SKIP: no scanned head in $data (tools/install-web-deps.sh scan)"
 	[ $fail -eq 0 ] && exit 77

@@ -2,6 +2,8 @@
 // tools/install-web-deps.sh scan, never committed) placed in the simulator's head frame.
 #include "sim/internal.hpp"
 
+#include "capture/capture_set.hpp"
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -9,7 +11,8 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
-#include <fstream>
+#include <cstring>
+#include <sstream>
 
 namespace facescan::sim {
 
@@ -25,22 +28,33 @@ const cv::Vec3f kCanonicalTip(0.f, -30.f, 119.5f);
 
 Status internal::load_scan_volume(const std::string &dir, ScanVolume *ret_volume)
 {
-	std::ifstream txt(dir + "/volume.txt");
-	std::ifstream raw(dir + "/volume.raw", std::ios::binary);
-	if (!txt || !raw)
+	// Through the project's one reader: a FIFO or device under these names is refused, not waited on.
+	std::string header, raw;
+	Status st = read_regular_file(dir + "/volume.txt", 4096, &header);
+	if (st.code() == -ENOENT)
 		return Status::error(-ENOENT, "no scan head in " + dir +
 						      " (volume.txt, volume.raw): fetch it with tools/install-web-deps.sh scan");
+	if (!st.ok())
+		return Status::error(st.code(), dir + "/volume.txt: " + st.message());
 	ScanVolume v;
+	std::istringstream txt(header);
 	txt >> v.nx >> v.ny >> v.nz >> v.spacing[0] >> v.spacing[1] >> v.spacing[2];
 	if (!txt || v.nx < 8 || v.ny < 8 || v.nz < 8 || v.nx > 2048 || v.ny > 2048 || v.nz > 2048 ||
 	    !(v.spacing[0] > 0.1f && v.spacing[1] > 0.1f && v.spacing[2] > 0.1f) ||
 	    !(v.spacing[0] < 10 && v.spacing[1] < 10 && v.spacing[2] < 10))
 		return Status::error(-EINVAL, dir + "/volume.txt: expected \"nx ny nz sx sy sz\" (8..2048 voxels, 0.1..10 mm)");
 	const size_t n = size_t(v.nx) * size_t(v.ny) * size_t(v.nz);
+	st = read_regular_file(dir + "/volume.raw", n * sizeof(int16_t), &raw);
+	if (st.code() == -ENOENT)
+		return Status::error(-ENOENT, "no scan head in " + dir +
+						      " (volume.raw): fetch it with tools/install-web-deps.sh scan");
+	if (!st.ok() || raw.size() != n * sizeof(int16_t))
+		return Status::error(-EINVAL, dir + "/volume.raw: not " + std::to_string(n) + " int16 voxels" +
+						      (st.ok() ? "" : " (" + st.message() + ")"));
 	std::vector<int16_t> in(n);
-	raw.read(reinterpret_cast<char *>(in.data()), std::streamsize(n * sizeof(int16_t)));
-	if (raw.gcount() != std::streamsize(n * sizeof(int16_t)) || raw.peek() != EOF)
-		return Status::error(-EINVAL, dir + "/volume.raw: not " + std::to_string(n) + " int16 voxels");
+	std::memcpy(in.data(), raw.data(), raw.size());
+	raw.clear();
+	raw.shrink_to_fit();
 	// Smoothed (sigma ~1 voxel in-slice, [1 2 1]/4 across slices) so that the iso-surface keeps
 	// the skin and not the CT's noise.
 	v.hu.resize(n);
