@@ -93,7 +93,8 @@ def main():
     os.makedirs(work, exist_ok=True)
     rows = []
     stamp = simulator_stamp()
-    scan_dir = os.environ.get("FACESCAN_SCAN_HEAD", os.path.join(os.path.dirname(os.path.abspath(a.bin)), "cache", "scan-head"))
+    # Where `facescan simulate --head scan` looks (tools/sim/simulate_verb.cpp, scan_head_dir).
+    scan_dir = os.environ.get("FACESCAN_SCAN_HEAD") or os.path.join(os.path.dirname(os.path.abspath(a.bin)), "cache", "scan-head")
     a.scan = a.scan_head and os.path.exists(os.path.join(scan_dir, "volume.raw"))
     if a.scan_head and not a.scan:
         print("bench: no scanned head in %s (tools/install-web-deps.sh scan): its rows are left out" % scan_dir, flush=True)
@@ -114,8 +115,7 @@ def main():
                 subprocess.run(["rm", "-rf", cap], check=True)
                 print("bench: %s: simulate" % name, flush=True)
                 r = subprocess.run([fs, "simulate", "--booth", "random", "--seed", str(booth), "--head", kind,
-                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True,
-                                   env=dict(os.environ, FACESCAN_SCAN_HEAD=scan_dir))
+                                    "--head-seed", str(head), "--out", cap], capture_output=True, text=True)
                 if r.returncode != 0:
                     print("bench: %s: simulate failed: %s" % (name, r.stderr.strip()), file=sys.stderr)
                     sys.exit(1)
