@@ -32,6 +32,16 @@ static eval::EvalResult reconstruct_and_score(const testing::SimulatedScan &scan
 	return r;
 }
 
+// Replaces *frame by a grey copy of it (a new buffer: a copied CaptureSet shares its frames'
+// pixels with the original, which must stay in colour).
+static void make_grey(cv::Mat *frame)
+{
+	cv::Mat g, bgr;
+	cv::cvtColor(*frame, g, cv::COLOR_BGR2GRAY);
+	cv::cvtColor(g, bgr, cv::COLOR_GRAY2BGR);
+	*frame = bgr;
+}
+
 static void test_default_scene(void **)
 {
 	const sim::Rig rig = sim::default_rig();
@@ -89,9 +99,7 @@ static void test_default_scene(void **)
 	// Measured here: 0.221 mm / 82.0 %; with the CLI (texture frames on) camera 3 grey 0.206 mm /
 	// 83.4 %, middle camera 1 grey 0.203 mm / 71.2 %.
 	CaptureSet grey = set;
-	cv::Mat g;
-	cv::cvtColor(grey.frames[3], g, cv::COLOR_BGR2GRAY);
-	cv::cvtColor(g, grey.frames[3], cv::COLOR_GRAY2BGR);
+	make_grey(&grey.frames[3]);
 	recon::Mesh grey_mesh;
 	recon::ReconReport grey_report;
 	const eval::EvalResult rg = reconstruct_and_score(scan, grey, projectors, recon::ReconParams(), "camera 3 grey",
@@ -105,10 +113,39 @@ static void test_default_scene(void **)
 	assert_true(rg.completeness >= 0.78);
 	assert_true(rg.completeness < r.completeness + 0.01); // the lost colour costs, never gains
 
+	// No pair has the code in both views (cameras 1 and 3 grey; random booth 1606 with the scanned
+	// head: two projectors' grids overlapping on the face left cameras 1 and 3 unread): cameras 0
+	// and 2 still read it, so the pattern is there, and every pair runs unseeded. --sparse, made of
+	// code matches, fails; so does a scan where no camera reads the code (all grey).
+	// Measured: 0.255 mm / 48.0 % (grey views: the coarse search has one channel, not three).
+	CaptureSet alternate = grey;
+	make_grey(&alternate.frames[1]);
+	recon::Mesh alternate_mesh;
+	recon::ReconReport alternate_report;
+	const eval::EvalResult ra = reconstruct_and_score(scan, alternate, projectors, recon::ReconParams(),
+							  "cameras 1 and 3 grey", &alternate_mesh, &alternate_report);
+	for (const recon::PairReport &p : alternate_report.pairs)
+		assert_int_equal(p.matches, 0);
+	assert_true(alternate_report.dense);
+	std::printf("e2e default, cameras 1 and 3 grey: %d vertices, RMS %.3f mm, completeness %.1f %%\n",
+		    ra.vertices, ra.rms_mm, 100 * ra.completeness);
+	assert_true(ra.rms_mm < 0.35);
+	assert_true(ra.completeness >= 0.4);
+	recon::ReconParams alternate_sparse;
+	alternate_sparse.dense_enabled = false;
+	Status refused = recon::reconstruct(alternate, scan.pattern, alternate_sparse, &alternate_mesh, &alternate_report);
+	assert_int_equal(refused.code(), -ENODATA);
+	assert_non_null(std::strstr(refused.message().c_str(), "no pair has the code in both views"));
+	make_grey(&alternate.frames[0]);
+	make_grey(&alternate.frames[2]);
+	refused = recon::reconstruct(alternate, scan.pattern, recon::ReconParams(), &alternate_mesh, &alternate_report);
+	assert_int_equal(refused.code(), -ENODATA);
+	assert_non_null(std::strstr(refused.message().c_str(), "no camera reads the code"));
+
 	// One pair's dense stage fails (here: camera 3's calibration turned 80 degrees about its
 	// vertical axis, so pair 2-3 converges past what the rectification takes): the scan keeps the
-	// other pairs' surface and the report names the pair and the reason. Measured: 0.185 mm /
-	// 89.7 %, 112k vertices (the completeness is counted by the true cameras, which still see it).
+	// other pairs' surface and the report names the pair and the reason. Measured: 0.192 mm /
+	// 89.5 %, 111k vertices (the completeness is counted by the true cameras, which still see it).
 	CaptureSet turned = set;
 	{
 		CameraModel &c3 = turned.calibration.cameras[3];
@@ -135,7 +172,7 @@ static void test_default_scene(void **)
 
 	// No code match survives triangulation (on random booth 301: every pair's code words disagree):
 	// the paper's mesh is impossible, the dense stage alone carries the scan; --sparse still fails
-	// with the fusion's reason. Measured: RMS 0.268 mm, completeness 74.0 % (all seeded: 0.206 / 92.2).
+	// with the fusion's reason. Measured: RMS 0.237 mm, completeness 80.5 % (all seeded: 0.186 / 92.8).
 	recon::ReconParams unseeded;
 	unseeded.triangulate.min_depth_mm = 1e9; // every triangulated point "behind" a camera
 	recon::Mesh unseeded_mesh;

@@ -80,6 +80,12 @@ static std::vector<std::string> report_warnings(const recon::ReconReport &r, con
 		if (!p.dense_error.empty())
 			out.push_back("pair " + std::to_string(p.cam_a) + "-" + std::to_string(p.cam_b) +
 				      ": dense stage failed (" + p.dense_error + "); the surface lacks that pair's view");
+	bool any_match = false;
+	for (const recon::PairReport &p : r.pairs)
+		any_match = any_match || p.matches > 0;
+	if (!any_match && r.dense)
+		out.push_back("no pair has a code match: the surface rests on the dense search over the working "
+			      "volume alone, with nothing from the code to check it against");
 	for (const recon::CameraReport &c : r.cameras) {
 		int matched = 0, dense_points = 0;
 		std::string pairs;
