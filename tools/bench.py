@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """make bench: the random booth x head matrix, reconstructed by `facescan recon` and by the stock
 OpenCV SGBM baseline (build/bin/sgbm-baseline) on the same capture in the same run, both scored
-against the simulator's ground truth; writes docs/benchmarks.md.
+against the simulator's ground truth; writes docs/benchmarks.md. The issue's completeness and
+vertex floors are judged on `facescan evaluate`'s face figures (ground_truth_face.ply: hairline to
+chin, ear to ear); the whole head's are shown beside them.
 
 Usage: tools/bench.py BIN_DIR [--booths N] [--heads K] [--first-seed S] [--out FILE]
 Environment: BENCH_DIR (work directory, default build/bench), BENCH_BOOTHS, BENCH_HEADS.
@@ -17,7 +19,9 @@ import subprocess
 import sys
 import time
 
-FLOORS = {"rms_mm": 0.30, "completeness": 0.85, "face_vertices": 100000, "time_ratio": 0.5, "peak_mb": 600}
+# The issue's floors. Completeness and vertices are over the face (hairline to chin, ear to ear:
+# the set's ground_truth_face.ply), not the whole head `facescan evaluate` also reports.
+FLOORS = {"rms_mm": 0.30, "face_completeness": 0.85, "face_region_vertices": 100000, "time_ratio": 0.5, "peak_mb": 600}
 
 
 def run_measured(cmd, log):
@@ -132,14 +136,34 @@ def main():
                     row["report"] = json.load(f)
             rows.append(row)
             e = row["recon"] or {}
-            print("bench: %s: recon %s s, RMS %.3f mm, completeness %.1f %%, %d face vertices; sgbm %s s" % (
-                name, row["recon_s"], e.get("rms_mm", float("nan")), 100 * e.get("completeness", 0),
-                e.get("face_vertices", 0), row["base_s"]), flush=True)
+            print("bench: %s: recon %s s, RMS %.3f mm, face completeness %s, %s face vertices (whole head %s, %s); "
+                  "sgbm %s s" % (
+                      name, row["recon_s"], e.get("rms_mm", float("nan")),
+                      fmt(pct(e.get("face_completeness")), "%.1f %%", "—" if e else "failed"),
+                      fmt(e.get("face_region_vertices"), "%d", "—" if e else "failed"), fmt(pct(e.get("completeness")), "%.1f %%"),
+                      fmt(e.get("face_vertices"), "%d"), row["base_s"]), flush=True)
     write(a.out, rows, a)
 
 
-def fmt(x, spec):
-    return spec % x if x is not None else "failed"
+def fmt(x, spec, missing="failed"):
+    return spec % x if x is not None else missing
+
+
+def pct(x):
+    return 100 * x if x is not None else None
+
+
+def face_coverage(e):
+    """How much of the face the booth counts at all (seen by >= 2 cameras and lit), whatever the
+    reconstruction: face_counted / face_truth_points; None for a set without a face."""
+    if not e or not e.get("face_truth_points"):
+        return None
+    return e["face_counted"] / e["face_truth_points"]
+
+
+def face(e, key):
+    """A face figure of an evaluation, None where the evaluation failed or the set has no face."""
+    return e.get(key) if e else None
 
 
 def write(path, rows, a):
@@ -166,40 +190,71 @@ def write(path, rows, a):
               "over the working volume's disparities, its left-right check and speckle filter, no decoding) in",
               "the same run. Times are wall seconds of the whole command (reading the PNGs included), peak",
               "memory the command's maximum resident set.", "",
+              "The issue's floors are over the **face** (hairline to chin, ear to ear: the simulator's",
+              "`face_region()`, written as each set's `ground_truth_face.ply`), so they are judged on the face",
+              "figures: **face completeness** is the fraction of the face's truth points the booth counts (seen",
+              "by >= 2 cameras and lit by a projector) that lie within 1 mm of the mesh, **face vertices** the",
+              "mesh's vertices within ~2 mm of a counted face point; **face coverage** is how much of the",
+              "face the booth counts at all (counted / all face points: what no reconstruction can win back).",
+              "**Head completeness** and **head vertices** are the same figures over every counted truth point",
+              "of the head (neck, ears, scalp and shoulders too: what this table's completeness and face",
+              "vertices were before), kept beside them for comparison; no floor is judged on them. RMS, median",
+              "and p95 are over every distinct vertex position of the mesh. `—`: the set has no",
+              "`ground_truth_face.ply` (rendered before the simulator wrote it).", "",
               "Reproduce one row: `build/bin/facescan simulate --booth random --seed B --head random --head-seed H",
               "--out /tmp/s && build/bin/facescan recon /tmp/s -o /tmp/s.drc && build/bin/facescan evaluate /tmp/s.drc /tmp/s`.", "",
-              "| scene | RMS mm | median | p95 | completeness | face vertices | recon s (CPU s) | SGBM s (CPU s) | time ratio | peak MB | SGBM RMS | SGBM completeness | SGBM face vertices |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| scene | RMS mm | median | p95 | face completeness | face vertices | face coverage | head completeness | head vertices | recon s (CPU s) | SGBM s (CPU s) | time ratio | peak MB | SGBM RMS | SGBM face completeness | SGBM face vertices |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         e, b = r["recon"] or {}, r["base"] or {}
         ratio = r["recon_s"] / r["base_s"] if r["recon_s"] and r["base_s"] else None
         r["ratio"] = ratio
-        lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+        # A failed evaluation says "failed"; a figure the set cannot give (no face) says "—".
+        nf = "failed" if not e else "—"
+        nb = "failed" if not b else "—"
+        lines.append("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
             r["name"], fmt(e.get("rms_mm"), "%.3f"), fmt(e.get("median_mm"), "%.3f"), fmt(e.get("p95_mm"), "%.3f"),
-            fmt(100 * e["completeness"] if e else None, "%.1f %%"), fmt(e.get("face_vertices"), "%d"),
+            fmt(pct(e.get("face_completeness")), "%.1f %%", nf), fmt(e.get("face_region_vertices"), "%d", nf),
+            fmt(pct(face_coverage(e or b)), "%.1f %%", "failed" if not (e or b) else "—"),
+            fmt(pct(e.get("completeness")), "%.1f %%"), fmt(e.get("face_vertices"), "%d"),
             fmt(r["recon_s"], "%.2f") + " (" + fmt(r["recon_cpu"], "%.2f") + ")",
             fmt(r["base_s"], "%.2f") + " (" + fmt(r["base_cpu"], "%.2f") + ")", fmt(ratio, "%.2f"), fmt(r["peak_mb"], "%.0f"),
-            fmt(b.get("rms_mm"), "%.3f"), fmt(100 * b["completeness"] if b else None, "%.1f %%"),
-            fmt(b.get("face_vertices"), "%d")))
+            fmt(b.get("rms_mm"), "%.3f"), fmt(pct(b.get("face_completeness")), "%.1f %%", nb),
+            fmt(b.get("face_region_vertices"), "%d", nb)))
     lines += ["", "## Distribution and worst rows", "",
               "| figure | floor | min | median | max | worst scene | scenes meeting the floor |", "|---|---|---|---|---|---|---|"]
 
     def dist(label, floor, key, higher_better, scale=1.0, spec="%.3f"):
+        """One figure's row; floor None: shown for comparison, no floor judged on it."""
         vals = [(key(r), r["name"]) for r in rows if key(r) is not None]
         if not vals:
+            if floor is not None:  # a floor no scene could be judged on is said, not dropped
+                lines.append("| %s | %s %s | — | — | — | — | 0 / %d (no scene has the figure) |" % (
+                    label, ">=" if higher_better else "<=", spec % (floor * scale), len(rows)))
             return
         xs = [v for v, _ in vals]
         worst = min(vals) if higher_better else max(vals)
-        meets = sum(1 for v in xs if (v >= floor if higher_better else v <= floor))
-        lines.append("| %s | %s %s | %s | %s | %s | %s | %d / %d |" % (
-            label, ">=" if higher_better else "<=", spec % (floor * scale), spec % (min(xs) * scale),
-            spec % (statistics.median(xs) * scale), spec % (max(xs) * scale), worst[1], meets, len(rows)))
+        if floor is None:
+            floor_text, meets_text = "—", "—"
+        else:
+            floor_text = "%s %s" % (">=" if higher_better else "<=", spec % (floor * scale))
+            meets = sum(1 for v in xs if (v >= floor if higher_better else v <= floor))
+            meets_text = "%d / %d" % (meets, len(rows))
+        lines.append("| %s | %s | %s | %s | %s | %s | %s |" % (
+            label, floor_text, spec % (min(xs) * scale), spec % (statistics.median(xs) * scale),
+            spec % (max(xs) * scale), worst[1], meets_text))
 
     dist("vertex RMS (mm)", FLOORS["rms_mm"], lambda r: r["recon"] and r["recon"]["rms_mm"], False)
-    dist("completeness within 1 mm (%)", FLOORS["completeness"], lambda r: r["recon"] and r["recon"]["completeness"],
+    dist("face completeness within 1 mm (%)", FLOORS["face_completeness"],
+         lambda r: face(r["recon"], "face_completeness"), True, 100, "%.1f")
+    dist("vertices on the face", FLOORS["face_region_vertices"], lambda r: face(r["recon"], "face_region_vertices"),
+         True, 1, "%d")
+    dist("face coverage: face points the booth counts (%)", None, lambda r: face_coverage(r["recon"] or r["base"]),
          True, 100, "%.1f")
-    dist("vertices on the face", FLOORS["face_vertices"], lambda r: r["recon"] and r["recon"]["face_vertices"], True,
-         1, "%d")
+    dist("head completeness within 1 mm (%), for comparison", None,
+         lambda r: r["recon"] and r["recon"]["completeness"], True, 100, "%.1f")
+    dist("vertices on the counted head, for comparison", None, lambda r: r["recon"] and r["recon"]["face_vertices"],
+         True, 1, "%d")
     dist("recon time / SGBM time (wall)", FLOORS["time_ratio"], lambda r: r.get("ratio"), False, 1, "%.2f")
     dist("recon CPU / SGBM CPU", FLOORS["time_ratio"],
          lambda r: r["recon_cpu"] / r["base_cpu"] if r.get("recon_cpu") and r.get("base_cpu") else None, False, 1, "%.2f")

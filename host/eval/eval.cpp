@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <tuple>
 #include <unordered_map>
@@ -140,9 +141,60 @@ static Status read_slide_masks(const std::string &path, size_t projectors,
 	return {};
 }
 
+namespace {
+// A vertex position by its floats' bits (-0 folded into +0): ground_truth.ply and
+// ground_truth_face.ply are written from the same floats, so the face's vertices are found exactly.
+struct PositionKey {
+	uint32_t x, y, z;
+	bool operator==(const PositionKey &o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct PositionHash {
+	size_t operator()(const PositionKey &k) const
+	{
+		return (size_t(k.x) * 73856093u) ^ (size_t(k.y) * 19349663u) ^ (size_t(k.z) * 83492791u);
+	}
+};
+PositionKey position_key(const cv::Point3f &p)
+{
+	const float f[3] = {p.x + 0.0f, p.y + 0.0f, p.z + 0.0f};
+	PositionKey k;
+	std::memcpy(&k.x, &f[0], sizeof k.x);
+	std::memcpy(&k.y, &f[1], sizeof k.y);
+	std::memcpy(&k.z, &f[2], sizeof k.z);
+	return k;
+}
+} // namespace
+
+Status match_face_vertices(const recon::Mesh &truth, const recon::Mesh &face, std::vector<char> *ret_face)
+{
+	if (face.positions.empty())
+		return Status::error(-EINVAL, "the face has no vertices");
+	// Face position -> whether a truth vertex has it.
+	std::unordered_map<PositionKey, char, PositionHash> found;
+	found.reserve(face.positions.size());
+	for (const cv::Point3f &p : face.positions)
+		found.emplace(position_key(p), 0);
+	std::vector<char> marks(truth.positions.size(), 0);
+	for (size_t i = 0; i < truth.positions.size(); ++i) {
+		const auto it = found.find(position_key(truth.positions[i]));
+		if (it == found.end())
+			continue;
+		marks[i] = 1;
+		it->second = 1;
+	}
+	size_t strays = 0;
+	for (const auto &kv : found)
+		strays += !kv.second;
+	if (strays)
+		return Status::error(-EINVAL, std::to_string(strays) + " of the face's " + std::to_string(found.size()) +
+						      " vertex positions are not vertices of the truth (not this head's face)");
+	*ret_face = std::move(marks);
+	return {};
+}
+
 Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 			 std::vector<CameraModel> *ret_projectors,
-			 std::vector<std::vector<cv::Point2d>> *ret_masks)
+			 std::vector<std::vector<cv::Point2d>> *ret_masks, std::vector<char> *ret_face)
 {
 	const std::string mesh_path = capture_dir + "/ground_truth.ply";
 	const std::string projectors_path = capture_dir + "/ground_truth_projectors.yaml";
@@ -157,12 +209,28 @@ Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 		if (s.ok() && ret_masks)
 			s = read_slide_masks(projectors_path, projectors.cameras.size(), &masks);
 	}
+	// The face region (sets rendered before it was written have none: no face figures).
+	std::vector<char> face_marks;
+	if (s.ok() && ret_face) {
+		const std::string face_path = capture_dir + "/ground_truth_face.ply";
+		recon::Mesh face;
+		s = mesh_io::read_ply(face_path, &face);
+		if (s.code() == -ENOENT)
+			s = {};
+		else if (s.ok()) {
+			s = match_face_vertices(truth, face, &face_marks);
+			if (!s.ok())
+				s = Status::error(s.code(), face_path + ": " + s.message());
+		}
+	}
 	if (!s.ok())
 		return s;
 	*ret_truth = std::move(truth);
 	*ret_projectors = std::move(projectors.cameras);
 	if (ret_masks)
 		*ret_masks = std::move(masks);
+	if (ret_face)
+		*ret_face = std::move(face_marks);
 	return {};
 }
 
@@ -198,6 +266,11 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		return Status::error(-EINVAL, "evaluate: the ground truth has no triangles");
 	if (params.projector_masks.size() > projectors.size())
 		return Status::error(-EINVAL, "evaluate: more slide masks than projectors");
+	if (!params.truth_face.empty() && params.truth_face.size() != truth.positions.size())
+		return Status::error(-EINVAL, "evaluate: the face has " + std::to_string(params.truth_face.size()) +
+						      " marks for the truth's " + std::to_string(truth.positions.size()) +
+						      " vertices");
+	const bool has_face = !params.truth_face.empty();
 	EvalResult r;
 	r.vertices = int(recon.positions.size());
 	r.triangles = int(recon.triangles.size());
@@ -263,21 +336,27 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		rec_edge += cv::norm(recon.positions[size_t(t[0])] - recon.positions[size_t(t[1])]);
 	rec_edge /= double(recon.triangles.size());
 	const MeshDistance to_recon(recon.positions, recon.triangles, std::max(2.0 * rec_edge, 1.0));
-	int covered = 0;
+	int covered = 0, face_covered = 0;
 	r.truth_points = int(pts.size());
 	r.truth_status.assign(pts.size(), -1);
 	for (size_t i = 0; i < pts.size(); ++i) {
+		const bool on_face = has_face && params.truth_face[i];
+		r.face_truth_points += on_face;
 		if (cams_seeing[i] < params.min_cameras || !lit[i])
 			continue;
 		r.truth_counted++;
 		r.truth_status[i] = to_recon.distance(pts[i], params.completeness_mm) <= params.completeness_mm;
 		covered += r.truth_status[i];
+		r.face_counted += on_face;
+		face_covered += on_face && r.truth_status[i];
 	}
 	r.completeness = r.truth_counted ? double(covered) / r.truth_counted : 0;
+	r.face_completeness = r.face_counted ? double(face_covered) / r.face_counted : 0;
 
 	// Vertices on the counted surface: within a 2 mm cell (or a neighbouring one) of a counted
-	// truth point. The neck, shoulders or hair a booth also reconstructs do not count.
-	{
+	// truth point (of a counted face point, for face_region_vertices). The neck, shoulders or
+	// hair a booth also reconstructs do not count.
+	auto vertices_near = [&](bool face_only) {
 		const double cell = 2.0;
 		auto key = [&](const cv::Point3d &p, int dx, int dy, int dz) {
 			const long long x = (long long)std::floor(p.x / cell) + dx, y = (long long)std::floor(p.y / cell) + dy,
@@ -286,15 +365,20 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		};
 		std::unordered_set<long long> counted;
 		for (size_t i = 0; i < pts.size(); ++i)
-			if (r.truth_status[i] >= 0)
+			if (r.truth_status[i] >= 0 && (!face_only || params.truth_face[i]))
 				counted.insert(key(pts[i], 0, 0, 0));
+		int n = 0;
 		for (const cv::Point3f &v : recon.positions) {
 			bool near = false;
 			for (int k = 0; k < 27 && !near; ++k)
 				near = counted.count(key(cv::Point3d(v), k % 3 - 1, k / 3 % 3 - 1, k / 9 - 1)) > 0;
-			r.face_vertices += near;
+			n += near;
 		}
-	}
+		return n;
+	};
+	r.face_vertices = vertices_near(false);
+	if (has_face)
+		r.face_region_vertices = vertices_near(true);
 	*ret_result = r;
 	return {};
 }

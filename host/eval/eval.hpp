@@ -45,6 +45,10 @@ struct EvalParams {
 	/// in slide pixels; a point lights only where it projects inside. Empty (or an empty
 	/// polygon) = the whole slide. read_ground_truth() reads them from a simulated set.
 	std::vector<std::vector<cv::Point2d>> projector_masks;
+	/// Per truth vertex, 1 on the face (hairline to chin, ear to ear: the "face"), for
+	/// the face figures of EvalResult; empty = none (a set without ground_truth_face.ply).
+	/// read_ground_truth() reads it from a simulated set.
+	std::vector<char> truth_face;
 };
 
 struct EvalResult {
@@ -61,17 +65,32 @@ struct EvalResult {
 	int face_vertices = 0;		// vertices within ~2 mm of a counted truth point
 	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
 	std::vector<signed char> truth_status;
+	// The same figures over the face's truth vertices only (EvalParams::truth_face; all 0 without
+	// it): what the "completeness >= 85 %" and ">= 100k vertices on the face" are over.
+	int face_truth_points = 0;	// face truth vertices (0: no face given, no face figures)
+	int face_counted = 0;		// ... seen by >= min_cameras cameras and lit, as truth_counted
+	double face_completeness = 0;	// fraction of the counted face points within completeness_mm
+	int face_region_vertices = 0;	// vertices within ~2 mm of a counted face truth point
 };
 
 /// A simulated capture set's ground truth: CAPTURE_DIR/ground_truth.ply (the head, world mm) and,
 /// when the set records them, the projectors that lit it (ground_truth_projectors.yaml; left
 /// empty for older sets). `ret_masks`, if given, gets each projector's slide mask (the file's
 /// `cam{j}_slide_mask: [x0, y0, x1, y1, ...]`; an empty polygon where it has none): pass them
-/// as EvalParams::projector_masks. -ENOENT when the set has no ground truth, -EINVAL for a
-/// malformed mask.
+/// as EvalParams::projector_masks. `ret_face`, if given, gets per truth vertex 1 where it is a
+/// vertex of ground_truth_face.ply (the face region, the same float positions as
+/// ground_truth.ply's), left empty when the set has no such file (older sets): pass it as
+/// EvalParams::truth_face. -ENOENT when the set has no ground truth, -EINVAL for a malformed
+/// mask or face file (not a PLY, no vertices, or a vertex ground_truth.ply does not have), and
+/// the mesh readers' errors (a FIFO or device is refused, -EFBIG beyond their size cap).
 Status read_ground_truth(const std::string &capture_dir, recon::Mesh *ret_truth,
 			 std::vector<CameraModel> *ret_projectors,
-			 std::vector<std::vector<cv::Point2d>> *ret_masks = nullptr);
+			 std::vector<std::vector<cv::Point2d>> *ret_masks = nullptr,
+			 std::vector<char> *ret_face = nullptr);
+
+/// Per vertex of `truth`: 1 where `face`'s vertices (a subset of truth's, by exact position) put
+/// one. -EINVAL when `face` has no vertices or one that `truth` does not have.
+Status match_face_vertices(const recon::Mesh &truth, const recon::Mesh &face, std::vector<char> *ret_face);
 
 /// Per vertex of `mesh` (world mm; `normals` per vertex): 1 when `device` sees it unoccluded
 /// (params.depth_scale, params.occlusion_tolerance_mm) and faces it at least params.min_cos —
@@ -84,8 +103,9 @@ std::vector<char> seen_by(const CameraModel &device, const recon::Mesh &mesh, co
 /// that at least `min_cameras` cameras see unoccluded and front-facing — and, when
 /// `projectors` is not empty, that at least one projector lights (the pattern can only be
 /// measured where it falls): faces it, is not shadowed and, where params.projector_masks gives
-/// the projector a mask, projects inside it. -EINVAL for an empty mesh, or more masks than
-/// projectors.
+/// the projector a mask, projects inside it. With params.truth_face the face figures are the
+/// same over the face's truth vertices. -EINVAL for an empty mesh, more masks than projectors,
+/// or a truth_face that is not one entry per truth vertex.
 Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::vector<CameraModel> &cameras,
 		const std::vector<CameraModel> &projectors, const EvalParams &params, EvalResult *ret_result);
 

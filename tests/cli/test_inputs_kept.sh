@@ -16,7 +16,7 @@ printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty floa
 "$bin" dicom export "$tmp/face.ply" "$tmp/face.dcm" --patient P-1 >/dev/null 2>&1 || { echo "FAIL: dicom export"; exit 1; }
 printf 'a texture' >"$tmp/face_texture.png"
 mkdir "$tmp/set" "$tmp/dbg" "$tmp/board"
-for f in calibration.yaml capture.json ground_truth.ply cam0.png; do printf '%s' "$f" >"$tmp/set/$f"; done
+for f in calibration.yaml capture.json ground_truth.ply ground_truth_face.ply cam0.png; do printf '%s' "$f" >"$tmp/set/$f"; done
 printf 'a cloud' >"$tmp/dbg/pair0_dense.ply"
 for f in pose0_cam0.png pose0_cam1.png; do printf 'an image' >"$tmp/board/$f"; done
 printf 'pose0_cam0.png pose0_cam1.png\n' >"$tmp/board/pairs.yaml"
@@ -34,6 +34,7 @@ refused() { # name expected-substring verb args...
 }
 refused "evaluate: errors over the mesh" "the mesh being evaluated" evaluate "$tmp/face.ply" "$tmp/set" --errors "$tmp/face.ply"
 refused "evaluate: coverage over the truth" "input of the capture set" evaluate "$tmp/face.ply" "$tmp/set" --coverage "$tmp/set/ground_truth.ply"
+refused "evaluate: errors over the face truth" "input of the capture set" evaluate "$tmp/face.ply" "$tmp/set" --errors "$tmp/set/ground_truth_face.ply"
 refused "evaluate: json over capture.json" "input of the capture set" evaluate "$tmp/face.ply" "$tmp/set" --json "$tmp/set/capture.json"
 refused "evaluate: two outputs, one file" "another output" evaluate "$tmp/face.ply" "$tmp/set" --errors "$tmp/e.ply" --coverage "$tmp/e.ply"
 refused "evaluate: missing over a debug file" "recon debug directory" evaluate "$tmp/face.ply" "$tmp/set" --missing "$tmp/dbg/pair0_dense.ply" --recon-debug "$tmp/dbg"

@@ -1,5 +1,6 @@
 // host/eval: point-triangle distance, and metrics of a known offset surface.
 #include "eval/eval.hpp"
+#include "mesh_io/mesh_io.hpp"
 #include "recon/dense.hpp"
 #include "recon/fusion.hpp"
 
@@ -8,6 +9,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <string>
+
+#include <sys/stat.h>
+#include <unistd.h>
 
 using namespace facescan;
 
@@ -166,6 +174,169 @@ static void test_attribute_missing(void **)
 		assert_true(count[size_t(k2)] > 0);
 }
 
+// sphere()'s grid: vertex (row j, column i) is j * (nu + 1) + i.
+static constexpr int kNu = 120, kNv = 80;
+
+// The face: rows 30-60 (elevation -15..30 deg), columns 30-90 (azimuth -40..40 deg) of sphere().
+static bool on_face(int j, int i)
+{
+	return j >= 30 && j <= 60 && i >= 30 && i <= 90;
+}
+
+// The truth's face as simulate writes ground_truth_face.ply: its vertices, the triangles among them.
+static recon::Mesh face_of(const recon::Mesh &truth)
+{
+	recon::Mesh face;
+	std::vector<int> index(truth.positions.size(), -1);
+	for (int j = 0; j <= kNv; ++j)
+		for (int i = 0; i <= kNu; ++i)
+			if (on_face(j, i)) {
+				index[size_t(j * (kNu + 1) + i)] = int(face.positions.size());
+				face.positions.push_back(truth.positions[size_t(j * (kNu + 1) + i)]);
+			}
+	for (const cv::Vec3i &t : truth.triangles)
+		if (index[size_t(t[0])] >= 0 && index[size_t(t[1])] >= 0 && index[size_t(t[2])] >= 0)
+			face.triangles.emplace_back(index[size_t(t[0])], index[size_t(t[1])], index[size_t(t[2])]);
+	return face;
+}
+
+// Face completeness has a known answer: the reconstruction is the truth 0.2 mm out, but only its
+// rows >= 40 (the truth's rows are 2.2 mm apart, so row 39 is > 1 mm from it). Every face point
+// is counted (the ring sees them all), so the face completeness is the face's rows 40-60 of its
+// 30-60: 21 / 31; the whole-head figures are those without the face.
+static void test_face_completeness(void **)
+{
+	const recon::Mesh truth = sphere(85);
+	const recon::Mesh full = sphere(85.2);
+	recon::Mesh part;
+	std::vector<int> index(full.positions.size(), -1);
+	for (size_t k = 0; k < full.positions.size(); ++k)
+		if (int(k) / (kNu + 1) >= 40) {
+			index[k] = int(part.positions.size());
+			part.positions.push_back(full.positions[k]);
+		}
+	for (const cv::Vec3i &t : full.triangles)
+		if (index[size_t(t[0])] >= 0 && index[size_t(t[1])] >= 0 && index[size_t(t[2])] >= 0)
+			part.triangles.emplace_back(index[size_t(t[0])], index[size_t(t[1])], index[size_t(t[2])]);
+
+	std::vector<char> face;
+	assert_true(eval::match_face_vertices(truth, face_of(truth), &face).ok());
+	assert_int_equal(face.size(), truth.positions.size());
+	int marked = 0;
+	for (size_t k = 0; k < face.size(); ++k) {
+		assert_int_equal(face[k], on_face(int(k) / (kNu + 1), int(k) % (kNu + 1)));
+		marked += face[k];
+	}
+	assert_int_equal(marked, 31 * 61);
+
+	eval::EvalResult head, r;
+	assert_true(eval::evaluate(part, truth, synth::ring(), {}, eval::EvalParams(), &head).ok());
+	eval::EvalParams params;
+	params.truth_face = face;
+	assert_true(eval::evaluate(part, truth, synth::ring(), {}, params, &r).ok());
+	std::printf("face: %.4f of %d counted (of %d face points; want 21/31 = %.4f), %d vertices near it; "
+		    "whole head: %.4f of %d, %d vertices near it\n",
+		    r.face_completeness, r.face_counted, r.face_truth_points, 21.0 / 31, r.face_region_vertices,
+		    r.completeness, r.truth_counted, r.face_vertices);
+	assert_int_equal(r.face_truth_points, 31 * 61);
+	assert_int_equal(r.face_counted, r.face_truth_points);
+	assert_true(std::fabs(r.face_completeness - 21.0 / 31) < 1e-12);
+	// The whole-head figures are what they were without a face; without one no face figures.
+	assert_true(r.completeness == head.completeness && r.truth_counted == head.truth_counted &&
+		    r.face_vertices == head.face_vertices && r.rms_mm == head.rms_mm);
+	assert_true(head.face_truth_points == 0 && head.face_counted == 0 && head.face_completeness == 0 &&
+		    head.face_region_vertices == 0);
+	assert_true(std::fabs(r.completeness - r.face_completeness) > 0.05); // not the whole head's figure
+	// Face-region vertices: at least the reconstruction's own face rows (each 0.2 mm from its
+	// face point), none beyond the 3 x 3 x 3 cells of 2 mm round a face point (< 7 mm).
+	int lo = 0, hi = 0;
+	for (size_t k = 0; k < part.positions.size(); ++k) {
+		const int j = 40 + int(k) / (kNu + 1), i = int(k) % (kNu + 1);
+		lo += on_face(j, i);
+		bool near = false;
+		for (size_t t = 0; t < truth.positions.size() && !near; ++t)
+			near = face[t] && cv::norm(part.positions[k] - truth.positions[t]) < 7.0;
+		hi += near;
+	}
+	std::printf("face-region vertices %d, between %d and %d\n", r.face_region_vertices, lo, hi);
+	assert_true(r.face_region_vertices >= lo && r.face_region_vertices <= hi);
+	assert_true(r.face_region_vertices < r.face_vertices);
+	// A face that is not one mark per truth vertex is refused.
+	params.truth_face.pop_back();
+	assert_int_equal(eval::evaluate(part, truth, synth::ring(), {}, params, &r).code(), -EINVAL);
+}
+
+struct TmpDir {
+	std::string path;
+	TmpDir()
+	{
+		char t[] = "/tmp/facescan-eval-XXXXXX";
+		const char *p = mkdtemp(t);
+		assert_non_null(p);
+		path = p;
+	}
+	~TmpDir()
+	{
+		const std::string cmd = "rm -rf '" + path + "'";
+		if (std::system(cmd.c_str()) != 0)
+			std::fprintf(stderr, "cannot remove %s\n", path.c_str());
+	}
+	std::string operator/(const std::string &f) const { return path + "/" + f; }
+};
+
+// read_ground_truth's face: absent is no face (older sets), the simulator's subset is marked, and
+// a malformed file, a face of another head, an empty one, a FIFO or a directory are refused.
+static void test_read_face_file(void **)
+{
+	const recon::Mesh truth = sphere(85);
+	TmpDir d;
+	assert_true(mesh_io::write_ply(d / "ground_truth.ply", truth).ok());
+	recon::Mesh gt;
+	std::vector<CameraModel> projectors;
+	std::vector<std::vector<cv::Point2d>> masks;
+	std::vector<char> face(3, 1);
+	assert_true(eval::read_ground_truth(d.path, &gt, &projectors, &masks, &face).ok());
+	assert_true(face.empty());
+	assert_int_equal(gt.positions.size(), truth.positions.size());
+
+	assert_true(mesh_io::write_ply(d / "ground_truth_face.ply", face_of(truth)).ok());
+	assert_true(eval::read_ground_truth(d.path, &gt, &projectors, &masks, &face).ok());
+	assert_int_equal(face.size(), truth.positions.size());
+	for (size_t k = 0; k < face.size(); ++k)
+		assert_int_equal(face[k], on_face(int(k) / (kNu + 1), int(k) % (kNu + 1)));
+
+	// Refusals: a non-zero code other than -ENOENT, the file named, `ret_face` untouched.
+	auto refused = [&](const char *what, const char *needle) {
+		std::vector<char> kept(5, 7);
+		const Status st = eval::read_ground_truth(d.path, &gt, &projectors, &masks, &kept);
+		std::printf("%s: %d %s\n", what, st.code(), st.message().c_str());
+		assert_true(st.code() < 0 && st.code() != -ENOENT);
+		assert_non_null(std::strstr(st.message().c_str(), "ground_truth_face.ply"));
+		assert_non_null(std::strstr(st.message().c_str(), needle));
+		assert_true(kept == std::vector<char>(5, 7));
+	};
+	std::ofstream(d / "ground_truth_face.ply") << "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n";
+	refused("cut short", "");
+	std::ofstream(d / "ground_truth_face.ply") << "not a ply at all";
+	refused("not a PLY", "");
+	recon::Mesh moved = face_of(truth);
+	moved.positions[100].x += 0.01f; // another head's face: one vertex the truth does not have
+	assert_true(mesh_io::write_ply(d / "ground_truth_face.ply", moved).ok());
+	refused("a vertex off the truth", "1 of the face's");
+	std::ofstream(d / "ground_truth_face.ply")
+		<< "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+		   "element face 0\nproperty list uchar int vertex_indices\nend_header\n";
+	refused("no vertices", "");
+	unlink((d / "ground_truth_face.ply").c_str());
+	assert_int_equal(mkfifo((d / "ground_truth_face.ply").c_str(), 0644), 0);
+	alarm(20); // a reader waiting on the FIFO fails the test instead of stalling the suite
+	refused("a FIFO", "not a regular file");
+	alarm(0);
+	unlink((d / "ground_truth_face.ply").c_str());
+	assert_int_equal(mkdir((d / "ground_truth_face.ply").c_str(), 0755), 0);
+	refused("a directory", "not a regular file");
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -173,6 +344,8 @@ int main(void)
 		cmocka_unit_test(test_offset_surface),
 		cmocka_unit_test(test_duplicates_count_once),
 		cmocka_unit_test(test_attribute_missing),
+		cmocka_unit_test(test_face_completeness),
+		cmocka_unit_test(test_read_face_file),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }

@@ -8,7 +8,7 @@ trap 'rm -rf "$out"' EXIT
 fail=0
 "$bin" simulate --scene turned --seed 3 --scale 0.2 --out "$out/set" --contact-sheet "$out/sheet.png" || {
 	echo "FAIL: simulate exited $?"; exit 1; }
-for f in calibration.yaml capture.json ground_truth.ply ground_truth_projectors.yaml cam0.png cam1.png cam2.png cam3.png \
+for f in calibration.yaml capture.json ground_truth.ply ground_truth_face.ply ground_truth_projectors.yaml cam0.png cam1.png cam2.png cam3.png \
 	cam0_texture.png cam1_texture.png cam2_texture.png cam3_texture.png; do
 	[ -s "$out/set/$f" ] || { echo "FAIL: $f missing or empty"; fail=1; }
 done
@@ -56,9 +56,15 @@ grep -q '^booth:' "$out/r1/booth.yaml" && grep -q 'calibration_error_px' "$out/r
 	{ echo "FAIL: booth.yaml does not record the draw"; fail=1; }
 "$bin" simulate --config "$out/r1/booth.yaml" --head canonical --scale 0.1 --no-texture --out "$out/again" >/dev/null ||
 	{ echo "FAIL: booth.yaml is not a rig file simulate reads"; fail=1; }
-self=$("$bin" evaluate "$out/r1/ground_truth.ply" "$out/r1" | sed -n 's/^completeness: \([0-9.]*\) %.*/\1/p')
-echo "random booth: the truth against itself is $self % complete"
+"$bin" evaluate "$out/r1/ground_truth.ply" "$out/r1" >"$out/r1-eval.txt"
+self=$(sed -n 's/^completeness: \([0-9.]*\) %.*/\1/p' "$out/r1-eval.txt")
+face=$(sed -n 's/^face completeness: \([0-9.]*\) % of \([0-9]*\) counted face points.* the face.s \([0-9]*\) .*/\1 \2 \3/p' "$out/r1-eval.txt")
+echo "random booth: the truth against itself is $self % complete; face: $face (%, counted, all)"
 [ "$self" = "100.0" ] || { echo "FAIL: evaluate on a random booth set"; fail=1; }
+# The face (ground_truth_face.ply) is found in the truth: 100 %, some of the head's points.
+set -- $face
+[ "${1:-}" = "100.0" ] && [ "${2:-0}" -gt 0 ] && [ "${3:-0}" -ge "${2:-0}" ] ||
+	{ echo "FAIL: evaluate's face figures on a random booth set"; cat "$out/r1-eval.txt"; fail=1; }
 for args in "--booth random --config $rigs/default.yaml" "--booth random --scene dark" "--booth nosuch" "--head nosuch" \
 	"--head random --head-seed canonical"; do
 	# shellcheck disable=SC2086

@@ -37,7 +37,7 @@ bool entry_of(const std::string &path, std::string *ret)
 bool is_capture_file(const std::string &name)
 {
 	if (name == "calibration.yaml" || name == "capture.json" || name == "ground_truth.ply" ||
-	    name == "ground_truth_projectors.yaml")
+	    name == "ground_truth_projectors.yaml" || name == "ground_truth_face.ply")
 		return true;
 	size_t i = 3;
 	if (name.compare(0, 3, "cam") != 0 || name.size() <= i || !std::isdigit((unsigned char)name[i]))

@@ -295,6 +295,9 @@ Status render_views(const Rig &rig, const std::vector<Surface> &surfaces, const 
 /// Ground truth of a simulated scan.
 struct SimTruth {
 	Mesh head;			// the head in world mm (as written to ground_truth.ply)
+	/// Per vertex of `head`: 1 on the face (face_region(): hairline to chin, ear to ear), what
+	/// the face completeness is over; written as ground_truth_face.ply.
+	std::vector<char> face;
 	std::vector<ViewTruth> views;	// per camera, when SimOptions::truth_maps
 	/// The projectors as pinhole models (projector_models(rig)): which truth points were lit,
 	/// for scoring completeness without knowing the rig file the set was rendered with.

@@ -3,11 +3,14 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iterator>
 #include <cmath>
+
+#include <unistd.h>
 
 namespace facescan::sim {
 
@@ -82,6 +85,12 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 	Status st = make_head(scene.head, scene.skin, &head.mesh);
 	if (!st.ok())
 		return st;
+	// A scanned head is placed in the canonical head's frame unscaled (scan_head.cpp), so its
+	// face is the canonical shape's region.
+	HeadSpec face_spec = scene.head;
+	if (!face_spec.scan_dir.empty())
+		face_spec.shape = HeadShape();
+	std::vector<char> face = face_region(face_spec, head.mesh);
 	transform_mesh(internal::head_rotation(scene.yaw_deg, scene.pitch_deg, scene.roll_deg), scene.position, &head.mesh);
 	head.id = 1;
 	head.specular = 0.06f; // the sheen of skin
@@ -122,6 +131,7 @@ Status simulate(const Rig &rig, const Scene &scene, const Pattern &pattern, uint
 	if (ret_truth) {
 		SimTruth t;
 		t.head = std::move(surfaces[0].mesh);
+		t.face = std::move(face);
 		t.views = std::move(res.truth);
 		t.projectors = projector_models(rig);
 		t.projector_masks = projector_masks(rig);
@@ -139,6 +149,33 @@ Status write_simulated_set(const std::string &dir, const CaptureSet &set, const 
 	st = write_ply(dir + "/ground_truth.ply", truth.head);
 	if (!st.ok())
 		return st;
+	if (truth.face.size() == truth.head.vertices.size()) {
+		// The face region as a mesh of its own (the truth's face vertices, the triangles among
+		// them): the evaluation finds its vertices in ground_truth.ply by position, and anyone
+		// can open it to see what "the face" is.
+		Mesh face;
+		std::vector<int> index(truth.face.size(), -1);
+		for (size_t i = 0; i < truth.face.size(); i++)
+			if (truth.face[i]) {
+				index[i] = int(face.vertices.size());
+				face.vertices.push_back(truth.head.vertices[i]);
+				if (!truth.head.normals.empty())
+					face.normals.push_back(truth.head.normals[i]);
+			}
+		for (const cv::Vec3i &t : truth.head.triangles)
+			if (index[size_t(t[0])] >= 0 && index[size_t(t[1])] >= 0 && index[size_t(t[2])] >= 0)
+				face.triangles.emplace_back(index[size_t(t[0])], index[size_t(t[1])], index[size_t(t[2])]);
+		// A head with no face triangle (none drawn has one) gets no face file, and the dir no
+		// stale one from an earlier render: evaluate then gives no face figures.
+		if (face.triangles.empty()) {
+			if (unlink((dir + "/ground_truth_face.ply").c_str()) < 0 && errno != ENOENT)
+				return Status::error(-errno, dir + "/ground_truth_face.ply: cannot remove a stale face");
+		} else {
+			st = write_ply(dir + "/ground_truth_face.ply", face);
+			if (!st.ok())
+				return st;
+		}
+	}
 	if (!truth.true_calibration.cameras.empty()) {
 		st = write_calibration(dir + "/ground_truth_calibration.yaml", truth.true_calibration);
 		if (!st.ok())
