@@ -506,6 +506,115 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 	return filled;
 }
 
+int bridge_dark_gaps(const cv::Mat &dark, double pitch_px, const DenseParams &params, cv::Mat *valid_io,
+		     cv::Mat *total_io, cv::Mat *ret_bridged)
+{
+	cv::Mat &valid = *valid_io;
+	const cv::Mat &total = *total_io;
+	*ret_bridged = cv::Mat(valid.size(), CV_8U, cv::Scalar(0));
+	const double width = params.dark_bridge_pitches * pitch_px;
+	if (!(width >= 2))
+		return 0;
+	const int diameter = int(std::lround(width)) | 1;
+	cv::Mat closed;
+	cv::morphologyEx(valid, closed, cv::MORPH_CLOSE,
+			 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(diameter, diameter)));
+	cv::Mat candidates = closed & ~valid & (dark != 0);
+	std::vector<cv::Point> todo;
+	cv::findNonZero(candidates, todo);
+	if (todo.empty())
+		return 0;
+	// Every 2nd pixel of a wide window is enough for 6 unknowns.
+	const int r = std::max(2, int(std::lround(params.dark_bridge_fit_pitches * pitch_px)));
+	const int step = r > 8 ? 2 : 1;
+	std::vector<float> value(todo.size(), std::numeric_limits<float>::quiet_NaN());
+	const double max_fit = params.dark_bridge_max_fit_px;
+	cv::parallel_for_(cv::Range(0, int(todo.size())), [&](const cv::Range &range) {
+		using Mat6 = Eigen::Matrix<double, 6, 6>;
+		using Vec6 = Eigen::Matrix<double, 6, 1>;
+		std::vector<std::pair<Vec6, double>> samples;
+		for (int i = range.start; i < range.end; ++i) {
+			const cv::Point c = todo[size_t(i)];
+			samples.clear();
+			for (int y = std::max(0, c.y - r); y <= std::min(valid.rows - 1, c.y + r); y += step) {
+				const uchar *vr = valid.ptr<uchar>(y);
+				const float *tr = total.ptr<float>(y);
+				for (int x = std::max(0, c.x - r); x <= std::min(valid.cols - 1, c.x + r); x += step) {
+					if (!vr[x] || (x - c.x) * (x - c.x) + (y - c.y) * (y - c.y) > r * r)
+						continue;
+					const double u = double(x - c.x) / r, v = double(y - c.y) / r;
+					Vec6 phi;
+					phi << 1, u, v, u * u, u * v, v * v;
+					samples.emplace_back(phi, double(tr[x]));
+				}
+			}
+			if (samples.size() < 24)
+				continue;
+			// Least squares, then again on the samples within 2x and 1x the limit of the last
+			// fit: a mismatched edge pixel of a square does not veto the gap.
+			Vec6 coef = Vec6::Zero();
+			bool fitted = false;
+			double rss = 0;
+			int inliers = 0;
+			for (int round = 0; round < 3; ++round) {
+				const double limit = round == 0 ? HUGE_VAL : (round == 1 ? 2 : 1) * max_fit;
+				Mat6 ata = Mat6::Zero();
+				Vec6 atb = Vec6::Zero();
+				double btb = 0;
+				int n = 0;
+				for (const auto &[phi, d] : samples) {
+					if (fitted && std::fabs(phi.dot(coef) - d) > limit)
+						continue;
+					ata += phi * phi.transpose();
+					atb += phi * d;
+					btb += d * d;
+					n++;
+				}
+				if (n < 24)
+					break;
+				const Eigen::LDLT<Mat6> ldlt(ata);
+				if (ldlt.info() != Eigen::Success)
+					break;
+				coef = ldlt.solve(atb);
+				fitted = coef.allFinite();
+				if (!fitted)
+					break;
+				rss = btb - coef.dot(atb); // residual sum of squares of the fit
+				inliers = n;
+			}
+			if (!(fitted && inliers >= 24 && 10 * inliers >= 7 * int(samples.size()) &&
+			      rss <= max_fit * max_fit * inliers))
+				continue;
+			// Samples on the two sides of a gap leave a quadratic free to bend through a step
+			// between two surfaces; a face's disparity bends by a fraction of a pixel over a
+			// window this size (a sphere of 80 mm bulges 0.1 mm over 8 mm), so a fit that bends
+			// by more than `dark_bridge_max_bend_px` at the window's edge is not a surface.
+			const double bend = std::fabs(coef[3]) + 0.5 * std::fabs(coef[4]) + std::fabs(coef[5]);
+			if (bend > params.dark_bridge_max_bend_px)
+				continue;
+			// The matches that fit lie around it on every side (each quadrant has some), so the
+			// fit interpolates across the gap: beside a step only one side's surface fits.
+			int quadrant[4] = {0, 0, 0, 0};
+			for (const auto &[phi, d] : samples)
+				if (std::fabs(phi.dot(coef) - d) <= max_fit)
+					quadrant[(phi[1] > 0) + 2 * (phi[2] > 0)]++;
+			if (std::min({quadrant[0], quadrant[1], quadrant[2], quadrant[3]}) >= 3)
+				value[size_t(i)] = float(coef[0]);
+		}
+	});
+	int bridged = 0;
+	for (size_t i = 0; i < todo.size(); ++i) {
+		if (value[i] != value[i])
+			continue;
+		const cv::Point c = todo[i];
+		total_io->at<float>(c) = value[i];
+		ret_bridged->at<uchar>(c) = 255;
+		bridged++;
+	}
+	valid |= *ret_bridged;
+	return bridged;
+}
+
 cv::Mat has_value(const cv::Mat &map)
 {
 	// Not `map == map`: OpenCV's vectorised compare does not keep IEEE semantics for NaN.
@@ -778,6 +887,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	cv::Mat valid(rp.size, CV_8U, cv::Scalar(0));
 	cv::Mat total(rp.size, CV_32F, cv::Scalar(0));
 	cv::Mat fail(rp.size, CV_8U, cv::Scalar(0)); // SGBM found no match (its checks refused one)
+	cv::Mat dark(rp.size, CV_8U, cv::Scalar(0)); // a prior, too dark to match in either view
 	for (int y = 0; y < rp.size.height; ++y) {
 		const short *dr = disp16.ptr<short>(y);
 		const float *pr = prior.ptr<float>(y);
@@ -796,6 +906,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 				continue;
 			}
 			if (gl[x] < params.min_intensity || gw[x] < params.min_intensity) {
+				dark.at<uchar>(y, x) = 255;
 				rr = kReasonDark;
 				continue;
 			}
@@ -841,6 +952,15 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		fill_flat_regions(grey_l, std_l, params, &valid, &total, &stats);
 		if (why)
 			reason.setTo(kReasonFlatDropped, before & ~valid);
+	}
+	// Before the rim and islands are judged: a dim booth's dark gaps between the squares are not
+	// the matched region's border.
+	cv::Mat bridged;
+	if (params.dark_bridge_pitches > 0) {
+		const double pitch = stats.median_spacing_px > 0 ? 2 * stats.median_spacing_px : params.default_pitch_px;
+		stats.dark_bridged = bridge_dark_gaps(dark, pitch, params, &valid, &total, &bridged);
+		if (why)
+			reason.setTo(kReasonKept, bridged);
 	}
 	// Steep disparity (a surface seen edge-on, or an occluding contour SGBM smears across) and the
 	// rim of the matched region are where matches go wrong: both are trimmed.
@@ -911,7 +1031,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 			const cv::Point3d w = rectified_to_world(rp, a, x, y, tr[x]);
 			const double z = rp.f * rp.baseline / den;
 			cloud.points.emplace_back(w);
-			cloud.confidence.push_back(sr[x] > 4 ? std::clamp(nr[x], 0.f, 1.f) : float(params.flat_confidence));
+			const bool interpolated = sr[x] <= 4 || (!bridged.empty() && bridged.at<uchar>(y, x));
+			cloud.confidence.push_back(interpolated ? float(params.flat_confidence) : std::clamp(nr[x], 0.f, 1.f));
 			cloud.border_mm.push_back(float(br[x] * z / rp.f));
 		}
 	}

@@ -87,6 +87,21 @@ struct DenseParams {
 	/// path directions from edges that disagree (random booths 111, 604: such points near the
 	/// pair's border RMS 0.7-0.8 mm, one in ten > 1 mm off). 0: kept.
 	double flat_unfitted_reach_px = 8;
+	/// Dark gaps bridged: on a dim booth the black gaps between the squares fall below
+	/// `min_intensity` and stay unmatched, so the matched region is a lattice of squares that the
+	/// rim and island filters cut apart (held-out booth 1604 with the scanned head: 16 % of the
+	/// counted face lost as dark, 19 % as rim, 13 % as islands; completeness 38 %). A dark pixel
+	/// with a prior, inside a gap of the matched region at most `dark_bridge_pitches` square
+	/// pitches wide (the slide's gaps are 0.3), gets the quadratic fitted to the matches within
+	/// `dark_bridge_fit_pitches` of it when, after two trimmed refits, ≥ 70 % of them agree with it
+	/// to `dark_bridge_max_fit_px` RMS, those lie on every side of it (each quadrant), and the fit
+	/// bends by at most `dark_bridge_max_bend_px` at the window's edge (a gap across a step, a
+	/// shadow beside the nose, fits only with a sharp bend). Its point carries `flat_confidence`.
+	/// 0: off.
+	double dark_bridge_pitches = 0.45;
+	double dark_bridge_fit_pitches = 0.25;
+	double dark_bridge_max_fit_px = 0.3;
+	double dark_bridge_max_bend_px = 2.0;
 	/// Matches within this many pixels (square neighbourhood, matching resolution) of a prior pixel
 	/// SGBM refused (its checks found no match) are dropped: they border a mismatch or an
 	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
@@ -139,6 +154,7 @@ struct DenseStats {
 	int flat_filled = 0, flat_kept = 0; // flat-region pixels refilled / left as SGBM matched them
 	int flat_dropped = 0;		    // ... dropped: dark and out of the texture's reach
 	int flat_unfitted_dropped = 0;	    // ... dropped: bright, unfitted, out of the texture's reach
+	int dark_bridged = 0;		    // dark pixels inside a gap of the matches, given their quadratic
 	int points = 0;	       // in the cloud
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
@@ -160,6 +176,19 @@ struct DenseStats {
 /// (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted) in `stats`.
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
 		      cv::Mat *total, DenseStats *stats);
+
+/// The dark gaps of the matched region bridged (DenseParams::dark_bridge_pitches): each `dark`
+/// pixel (CV_8U, nonzero: too dark to match, with a prior) that a closing of `valid` by a disk
+/// `dark_bridge_pitches` × `pitch_px` wide covers gets the quadratic d = f(x, y) least-squares
+/// fitted to the `valid` disparities of `total` within `dark_bridge_fit_pitches` × `pitch_px`
+/// (refitted twice on the samples within 2× and 1× `dark_bridge_max_fit_px` of the last fit),
+/// when at least 24 samples and 70 % of them stay, fitting it to `dark_bridge_max_fit_px` RMS,
+/// at least 3 of those in each quadrant around the pixel, and the fit's second-order part is at
+/// most `dark_bridge_max_bend_px` (|c_uu| + |c_uv| / 2 + |c_vv|, u and v in units of the
+/// window's radius); it is then set in `valid` and `bridged` (CV_8U, same size, allocated here).
+/// Returns the pixels bridged.
+int bridge_dark_gaps(const cv::Mat &dark, double pitch_px, const DenseParams &params, cv::Mat *valid, cv::Mat *total,
+		     cv::Mat *ret_bridged);
 
 /// Why a rectified left pixel has no point in the pair's cloud (DensePairDebug::reason), in the
 /// stages' order: the last stage that looked at it. `facescan evaluate --missing` reads them.

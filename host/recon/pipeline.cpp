@@ -369,6 +369,7 @@ std::string report_json(const ReconReport &r)
 				   {"flat_kept", p.dense.flat_kept},
 				   {"flat_dropped", p.dense.flat_dropped},
 				   {"flat_unfitted_dropped", p.dense.flat_unfitted_dropped},
+				   {"dark_bridged", p.dense.dark_bridged},
 				   {"at_search_edge", p.dense.at_search_edge},
 				   {"steep", p.dense.steep},
 				   {"rim", p.dense.rim},

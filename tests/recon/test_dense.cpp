@@ -512,6 +512,86 @@ static void unfitted_flat_regions_dropped_beyond_reach(void **)
 // (unmatched: carried as 0) must keep its own disparity, not a blend with the hole's 0. Blank
 // frames give no gradient, so Lucas-Kanade moves nothing and every valid pixel must come back
 // exactly as it went in (a quarter of it lost next to a hole cut every dark gap's squares apart).
+// A dim booth: the gaps between the squares are too dark to match, so the matches are a lattice
+// of squares. The gaps get the surface's disparity back (a quadratic over the squares around
+// them); a dark gap across a step (a shadow between two surfaces) and a dark area wider than a
+// gap stay empty.
+static void dark_gaps_bridged_between_squares(void **)
+{
+	const cv::Size size(240, 180);
+	const double pitch = 30;
+	// The slide's gaps are 0.3 of the pitch; what falls below `min_intensity` on a dim booth is
+	// their core, blurred edges aside.
+	const int gap = 6;
+	const int step_x = 210 + gap; // the gap column x = 210 .. step_x - 1 lies between two surfaces
+	auto truth = [&](double x, double y) { return 20 + 0.05 * x - 0.03 * y + 1e-4 * (x - 120) * (x - 120); };
+	cv::Mat total(size, CV_32F), valid(size, CV_8U), dark(size, CV_8U, cv::Scalar(0));
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x) {
+			const bool in_gap = x % int(pitch) < gap || y % int(pitch) < gap;
+			total.at<float>(y, x) = in_gap ? 0.f : float(truth(x, y));
+			valid.at<uchar>(y, x) = in_gap ? 0 : 255;
+			dark.at<uchar>(y, x) = in_gap ? 255 : 0;
+		}
+	// A dark hole two pitches wide in the middle: not a gap.
+	const cv::Rect hole(90, 60, 60, 60);
+	valid(hole).setTo(0);
+	dark(hole).setTo(255);
+	// A step of 6 px across the gap column at x = 210: left and right of it are two surfaces.
+	for (int y = 0; y < size.height; ++y)
+		for (int x = step_x; x < size.width; ++x)
+			if (valid.at<uchar>(y, x))
+				total.at<float>(y, x) += 6.f;
+	const cv::Mat before = valid.clone();
+	DenseParams params;
+	cv::Mat bridged;
+	const int n = bridge_dark_gaps(dark, pitch, params, &valid, &total, &bridged);
+	int inner_gaps = 0, inner_bridged = 0, in_hole = 0, at_step = 0;
+	double worst = 0;
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x) {
+			const bool gap_px = !before.at<uchar>(y, x);
+			const bool b = bridged.at<uchar>(y, x) != 0;
+			assert_true(!b || gap_px);			  // matches are never touched
+			assert_true(b == (valid.at<uchar>(y, x) != 0 && gap_px)); // bridged = set in valid
+			const cv::Rect near_hole(hole.x - int(pitch), hole.y - int(pitch), hole.width + 2 * int(pitch),
+						 hole.height + 2 * int(pitch));
+			if (hole.contains(cv::Point(x, y))) {
+				// Only a gap's width into the hole from its edge can the closing reach.
+				const int d = std::min({x - hole.x, hole.x + hole.width - 1 - x, y - hole.y,
+							hole.y + hole.height - 1 - y});
+				in_hole += b && d > gap;
+				continue;
+			}
+			if (x >= 210 && x < step_x) {
+				at_step += b;
+				continue;
+			}
+			// Gaps wholly inside the lattice (not at the image's border, which the closing
+			// does not reach beyond, nor beside the hole, where a side is missing).
+			if (gap_px && x >= int(pitch) && y >= int(pitch) && x < 200 && y < 150 &&
+			    !near_hole.contains(cv::Point(x, y))) {
+				inner_gaps++;
+				inner_bridged += b;
+				if (b)
+					worst = std::max(worst, std::fabs(total.at<float>(y, x) - truth(x, y)));
+			}
+		}
+	std::printf("dark gaps: %d bridged, inner gaps %d of %d, worst %.4f px; in the hole %d, at the step %d\n", n,
+		    inner_bridged, inner_gaps, worst, in_hole, at_step);
+	assert_int_equal(n, cv::countNonZero(bridged));
+	// Missed: the gap's last column before a square, where the far side is at the window's edge.
+	assert_true(inner_bridged >= 0.85 * inner_gaps);
+	assert_true(worst < 0.05);
+	assert_int_equal(in_hole, 0);
+	assert_int_equal(at_step, 0);
+	// Off: nothing changes.
+	params.dark_bridge_pitches = 0;
+	cv::Mat v = before.clone(), t = total.clone();
+	assert_int_equal(bridge_dark_gaps(dark, pitch, params, &v, &t, &bridged), 0);
+	assert_int_equal(cv::countNonZero(v != before), 0);
+}
+
 static void refinement_keeps_disparity_next_to_holes(void **)
 {
 	const std::vector<CameraModel> cams = synth::ring();
@@ -598,6 +678,7 @@ int main(void)
 		cmocka_unit_test(flat_squares_refilled_from_their_edges),
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
+		cmocka_unit_test(dark_gaps_bridged_between_squares),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
 		cmocka_unit_test(steep_test_keeps_stretched_surfaces),
 		cmocka_unit_test(fusion_makes_one_sheet),
