@@ -62,7 +62,7 @@ struct EvalResult {
 	int truth_points = 0;		// truth vertices
 	int truth_counted = 0;		// ... seen by >= min_cameras cameras (and lit, see below)
 	int vertices = 0, triangles = 0;
-	int face_vertices = 0;		// vertices within ~2 mm of a counted truth point
+	int face_vertices = 0;		// distinct vertex positions within ~2 mm of a counted truth point
 	/// Per truth vertex: -1 not counted (seen by too few cameras or unlit), 0 missed, 1 covered.
 	std::vector<signed char> truth_status;
 	// The same figures over the face's truth vertices only (EvalParams::truth_face; all 0 without
@@ -70,7 +70,7 @@ struct EvalResult {
 	int face_truth_points = 0;	// face truth vertices (0: no face given, no face figures)
 	int face_counted = 0;		// ... seen by >= min_cameras cameras and lit, as truth_counted
 	double face_completeness = 0;	// fraction of the counted face points within completeness_mm
-	int face_region_vertices = 0;	// vertices within ~2 mm of a counted face truth point
+	int face_region_vertices = 0;	// distinct positions within ~2 mm of a counted face truth point
 };
 
 /// A simulated capture set's ground truth: CAPTURE_DIR/ground_truth.ply (the head, world mm) and,
