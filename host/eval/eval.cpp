@@ -354,8 +354,10 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 	r.face_completeness = r.face_counted ? double(face_covered) / r.face_counted : 0;
 
 	// Vertices on the counted surface: within a 2 mm cell (or a neighbouring one) of a counted
-	// truth point (of a counted face point, for face_region_vertices). The neck, shoulders or
-	// hair a booth also reconstructs do not count, and neither do the texture atlas's copies of a
+	// truth point; for face_region_vertices, of any face truth point: a vertex on the face is on
+	// it whether or not the evaluation's visibility test (which gives up on surfaces steeper than
+	// ~60 degrees to a camera) counts the truth there. The neck, shoulders or hair a booth also
+	// reconstructs do not count, and neither do the texture atlas's copies of a
 	// vertex on its chart seams (each position once, as for the RMS: bench booth 1900, 246k
 	// vertices for 201k positions).
 	auto vertices_near = [&](bool face_only) {
@@ -367,7 +369,7 @@ Status evaluate(const recon::Mesh &recon, const recon::Mesh &truth, const std::v
 		};
 		std::unordered_set<long long> counted;
 		for (size_t i = 0; i < pts.size(); ++i)
-			if (r.truth_status[i] >= 0 && (!face_only || params.truth_face[i]))
+			if (face_only ? params.truth_face[i] != 0 : r.truth_status[i] >= 0)
 				counted.insert(cell_key(pts[i], 0, 0, 0));
 		int n = 0;
 		for (size_t k = 0; k < order.size(); ++k) {

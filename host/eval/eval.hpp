@@ -70,7 +70,7 @@ struct EvalResult {
 	int face_truth_points = 0;	// face truth vertices (0: no face given, no face figures)
 	int face_counted = 0;		// ... seen by >= min_cameras cameras and lit, as truth_counted
 	double face_completeness = 0;	// fraction of the counted face points within completeness_mm
-	int face_region_vertices = 0;	// distinct positions within ~2 mm of a counted face truth point
+	int face_region_vertices = 0;	// distinct positions within ~2 mm of a face truth point
 };
 
 /// A simulated capture set's ground truth: CAPTURE_DIR/ground_truth.ply (the head, world mm) and,

@@ -269,7 +269,7 @@ int evaluate_main(int argc, char **argv)
 		    100.0 * r.completeness, r.truth_counted, params.completeness_mm, r.face_vertices);
 	if (r.face_truth_points > 0)
 		std::printf("face completeness: %.1f %% of %d counted face points within %.2f mm; the booth counts "
-			    "%d of the face's %d (%.1f %%); %d vertices near the counted face\n",
+			    "%d of the face's %d (%.1f %%); %d vertices on the face\n",
 			    100.0 * r.face_completeness, r.face_counted, params.completeness_mm, r.face_counted,
 			    r.face_truth_points, 100.0 * r.face_counted / r.face_truth_points, r.face_region_vertices);
 	else
