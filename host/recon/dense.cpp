@@ -520,21 +520,21 @@ int bridge_dark_gaps(const cv::Mat &dark, double pitch_px, const DenseParams &pa
 	cv::morphologyEx(valid, closed, cv::MORPH_CLOSE,
 			 cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(diameter, diameter)));
 	cv::Mat candidates = closed & ~valid & (dark != 0);
-	std::vector<cv::Point> todo;
-	cv::findNonZero(candidates, todo);
-	if (todo.empty())
+	std::vector<cv::Point> gap_pixels;
+	cv::findNonZero(candidates, gap_pixels);
+	if (gap_pixels.empty())
 		return 0;
 	// Every 2nd pixel of a wide window is enough for 6 unknowns.
 	const int r = std::max(2, int(std::lround(params.dark_bridge_fit_pitches * pitch_px)));
 	const int step = r > 8 ? 2 : 1;
-	std::vector<float> value(todo.size(), std::numeric_limits<float>::quiet_NaN());
+	std::vector<float> value(gap_pixels.size(), std::numeric_limits<float>::quiet_NaN());
 	const double max_fit = params.dark_bridge_max_fit_px;
-	cv::parallel_for_(cv::Range(0, int(todo.size())), [&](const cv::Range &range) {
+	cv::parallel_for_(cv::Range(0, int(gap_pixels.size())), [&](const cv::Range &range) {
 		using Mat6 = Eigen::Matrix<double, 6, 6>;
 		using Vec6 = Eigen::Matrix<double, 6, 1>;
 		std::vector<std::pair<Vec6, double>> samples;
 		for (int i = range.start; i < range.end; ++i) {
-			const cv::Point c = todo[size_t(i)];
+			const cv::Point c = gap_pixels[size_t(i)];
 			samples.clear();
 			for (int y = std::max(0, c.y - r); y <= std::min(valid.rows - 1, c.y + r); y += step) {
 				const uchar *vr = valid.ptr<uchar>(y);
@@ -603,10 +603,10 @@ int bridge_dark_gaps(const cv::Mat &dark, double pitch_px, const DenseParams &pa
 		}
 	});
 	int bridged = 0;
-	for (size_t i = 0; i < todo.size(); ++i) {
+	for (size_t i = 0; i < gap_pixels.size(); ++i) {
 		if (value[i] != value[i])
 			continue;
-		const cv::Point c = todo[i];
+		const cv::Point c = gap_pixels[i];
 		total_io->at<float>(c) = value[i];
 		ret_bridged->at<uchar>(c) = 255;
 		bridged++;
