@@ -98,6 +98,23 @@ bool search(int rows, int cols, int letters, uint32_t seed, long max_steps,
 	return true;
 }
 
+// Matrices this build has already searched, so a reconstruction does not spend ~130 ms (8 % of
+// a scan's wall time on 2 cores) regenerating its slide from the id on every run. Only a cache:
+// test_pattern checks each entry against search_code_matrix, so an entry can never name another
+// matrix than its spec's search finds.
+struct KnownMatrix {
+	int letters, rows, cols;
+	uint32_t seed;
+	const char *cells; // row-major, one digit per letter, row 0 at the top of the slide
+};
+constexpr KnownMatrix kKnownMatrices[] = {
+	{3, 14, 19, 2,
+	 "2121012120120110101" "0012000011021210012" "0000121122001022202" "1100121110210020120"
+	 "0101000201100202120" "1102201010211212120" "1100220012120201010" "2012202210110202011"
+	 "2222002211111122121" "0211201221102100210" "1222102011210020212" "2120221112220001122"
+	 "2002101012220222000" "1010022122120011121"},
+};
+
 } // namespace
 
 CodeMatrix::CodeMatrix(int rows, int cols, int letters, std::vector<uint8_t> cells)
@@ -157,7 +174,7 @@ int CodeMatrix::min_hamming_distance() const
 	return best;
 }
 
-Status generate_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix, uint32_t *ret_seed)
+Status search_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix, uint32_t *ret_seed)
 {
 	if (spec.window != CodeWindow::Cross5)
 		return Status::error(EINVAL, "only the 5-cell cross window is implemented");
@@ -185,6 +202,23 @@ Status generate_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix, 
 	return Status::error(ETIMEDOUT, "no unique code matrix of " + std::to_string(spec.rows) + "x" +
 						std::to_string(spec.cols) + " found from seed " +
 						std::to_string(spec.seed));
+}
+
+Status generate_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix, uint32_t *ret_seed)
+{
+	// The search tries seed, seed + 1, ...: a known matrix found from spec.seed is its answer.
+	for (const KnownMatrix &k : kKnownMatrices)
+		if (spec.window == CodeWindow::Cross5 && spec.attempts >= 1 && k.letters == spec.letters &&
+		    k.rows == spec.rows && k.cols == spec.cols && k.seed == spec.seed) {
+			std::vector<uint8_t> cells(size_t(k.rows) * size_t(k.cols));
+			for (size_t i = 0; i < cells.size(); i++)
+				cells[i] = uint8_t(k.cells[i] - '0');
+			*ret_matrix = CodeMatrix(k.rows, k.cols, k.letters, std::move(cells));
+			if (ret_seed)
+				*ret_seed = k.seed;
+			return {};
+		}
+	return search_code_matrix(spec, ret_matrix, ret_seed);
 }
 
 } // namespace facescan

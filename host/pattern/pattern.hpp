@@ -63,6 +63,10 @@ private:
 
 /// Searches for a matrix of the given size whose interior code words are all distinct (seeded
 /// local search; deterministic for a spec). -ETIMEDOUT when none was found within the budget.
+Status search_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix,
+			  uint32_t *ret_seed = nullptr);
+/// search_code_matrix's answer, taken from this build's table of matrices already searched
+/// when the spec is one of them (the default is), else searched.
 Status generate_code_matrix(const CodeMatrixSpec &spec, CodeMatrix *ret_matrix,
 			    uint32_t *ret_seed = nullptr);
 
