@@ -125,10 +125,14 @@ struct DenseParams {
 	/// Sub-pixel refinement after SGBM: Lucas-Kanade along the rows at `refine_scale` times the
 	/// matching resolution (2: the cameras' own), zero-mean windows of `refine_window` pixels,
 	/// where the window's mean squared gradient exceeds `refine_min_gradient`² (a flat square's
-	/// interior keeps SGBM's value). 0 iterations: off.
-	int refine_iterations = 3;
+	/// interior keeps SGBM's value). 0 iterations: off. Two iterations of 13 px rather than
+	/// three of 9: RMS lower on 21 of 24 held-out scenes (booths 2000-2011, mean -0.007 mm,
+	/// 2011-scan 0.257 -> 0.237) and 12 of 12 bench booths (104 0.344 -> 0.329, 105 0.267 ->
+	/// 0.239), completeness within run-to-run noise, a third less refinement time. A third
+	/// iteration moved points away from the truth more often than towards it.
+	int refine_iterations = 2;
 	double refine_scale = 2.0;
-	int refine_window = 9;
+	int refine_window = 13;
 	double refine_min_gradient = 2.0;
 };
 
