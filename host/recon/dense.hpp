@@ -30,7 +30,12 @@ struct DenseParams {
 	/// Matches within this many pixels of the residual range's ends are dropped.
 	float edge_margin_px = 1.0f;
 	/// SGBM block size (odd) and smoothness penalties per channel (P1, P2 = factor * cn * block²).
-	int block = 5;
+	/// 3 with a 1 px unsure margin rather than 5 with 2 (2026-12-06, after the refinement's 13 px
+	/// windows): held-out booths 2000-2011 RMS lower on 18 of 24 (mean -0.010 mm, 2000-scan
+	/// 0.394 -> 0.347), face completeness +0.5 points on average (worst 2004-scan -2.2);
+	/// bench booth 111 0.334 -> 0.258 mm. Block 3 alone lost completeness (111 -5.8 points):
+	/// its matches are noisier at the edges SGBM refuses, and a 2 px margin cut too much there.
+	int block = 3;
 	int p1_factor = 8, p2_factor = 32;
 	int uniqueness = 10;	    // SGBM uniqueness ratio, percent
 	int disp12_max_diff = 1;    // left-right check, pixels at the matching resolution
@@ -106,7 +111,7 @@ struct DenseParams {
 	/// SGBM refused (its checks found no match) are dropped: they border a mismatch or an
 	/// occlusion. Pixels next to ones only too dark to match (the gaps between squares on a dim
 	/// booth) stay. 0: off.
-	int unmatched_margin_px = 2;
+	int unmatched_margin_px = 1;
 	/// Connected matched regions smaller than this (pixels, matching resolution) are dropped.
 	int min_region_px = 400;
 	/// Pixels where the disparity changes faster than this (px per px: ~66 degrees of slant at the

@@ -255,8 +255,10 @@ void coarse_search_works_without_code(void **)
 }
 
 // Matches next to a pixel SGBM refused are unsure (a mismatch or an occlusion beside them): with
-// the margin off, the unseeded sphere keeps them and its tail of errors grows (measured p95 0.60
-// against 0.53 mm); with it on they go, and are counted.
+// the margin off, the unseeded sphere keeps them and its tail of errors grows (measured p95 0.556
+// against 0.547 mm with SGBM's 3 px block and the 1 px margin; 0.60 against 0.53 with the 5 px
+// block and 2 px margin before 2026-12-06, whose wider windows smeared more across a refusal);
+// with it on they go, and are counted.
 void matches_beside_refused_pixels_dropped(void **)
 {
 	SphereScene s;
@@ -275,7 +277,7 @@ void matches_beside_refused_pixels_dropped(void **)
 	assert_int_equal(stats_off.near_unmatched, 0);
 	assert_true(stats.near_unmatched > 0);
 	assert_true(e.n < eo.n);
-	assert_true(e.p95 < eo.p95 - 0.03);
+	assert_true(e.p95 < eo.p95 - 0.005);
 }
 
 void dense_refuses_bad_input(void **)
