@@ -288,9 +288,14 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	cv::Mat d0(roi.size(), CV_32F, cv::Scalar(0)), v32;
 	(*disparity)(roi).copyTo(d0, valid(roi));
 	valid(roi).convertTo(v32, CV_32F, 1.0 / 255);
+	// Upsampled so that full-resolution pixel x reads matching pixel x / k, as the rectification
+	// above puts it; cv::resize aligns pixel centres instead (x / k - 1/4 at k = 2), and every
+	// refined pixel then moved by a quarter of the disparity's slope (test_dense's
+	// refinement_starts_where_the_disparity_is).
 	cv::Mat D, W;
-	cv::resize(d0, D, size, 0, 0, cv::INTER_LINEAR);
-	cv::resize(v32, W, size, 0, 0, cv::INTER_LINEAR);
+	const cv::Matx23d to_matching(1 / k, 0, 0, 0, 1 / k, 0);
+	cv::warpAffine(d0, D, to_matching, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
+	cv::warpAffine(v32, W, to_matching, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
 	// Normalised: bilinear weights on invalid neighbours (their 0) would pull a pixel next to a
 	// hole towards disparity 0 (a quarter of it or more), a step the steep filter then cuts out.
 	for (int y = 0; y < size.height; ++y) {
