@@ -259,8 +259,11 @@ cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const Dense
 }
 
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity)
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
+		     RefinedDisparity *ret_refined)
 {
+	if (ret_refined)
+		*ret_refined = RefinedDisparity();
 	// The pair rectified again at twice the matching resolution, with the same geometry doubled,
 	// so that full-resolution x = 2 * matching x.
 	// Only the bounding box of the valid pixels is refined (the face is a fraction of the frame).
@@ -314,6 +317,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	cv::boxFilter(L, muL, CV_32F, win);
 	const cv::Mat Lz = L - muL;
 	cv::Mat mx(size, CV_32F), my(size, CV_32F);
+	cv::Mat measured(size, CV_8U, cv::Scalar(0)); // pixels the refinement moved
 	for (int it = 0; it < params.refine_iterations; ++it) {
 		for (int y = 0; y < size.height; ++y) {
 			const float *dr = D.ptr<float>(y);
@@ -335,11 +339,13 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 		for (int y = 0; y < size.height; ++y) {
 			float *dr = D.ptr<float>(y);
 			const float *ger = ge.ptr<float>(y), *ggr = gg.ptr<float>(y), *wr = W.ptr<float>(y);
+			uchar *mr = measured.ptr<uchar>(y);
 			for (int x = 0; x < size.width; ++x) {
 				if (wr[x] < 0.99f || ggr[x] < min_gg)
 					continue;
 				const float step = std::clamp(-ger[x] / ggr[x], -0.5f, 0.5f);
 				dr[x] += step;
+				mr[x] = 255;
 			}
 		}
 	}
@@ -356,6 +362,14 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
 			out[x] += (D.at<float>(yy, xx) - D_in.at<float>(yy, xx)) / float(k);
 		}
+	}
+	const int ik = int(std::lround(k));
+	if (ret_refined && ik >= 1 && std::fabs(k - ik) < 1e-9 && size == roi.size() * ik) {
+		ret_refined->roi = roi;
+		ret_refined->scale = ik;
+		ret_refined->disparity = cv::Mat(size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+		D.convertTo(D, CV_32F, 1.0 / k);
+		D.copyTo(ret_refined->disparity, measured);
 	}
 }
 
@@ -950,8 +964,14 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		if (why)
 			reason.setTo(kReasonNearRefused, near);
 	}
-	if (params.refine_iterations > 0)
-		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total);
+	RefinedDisparity refined;
+	cv::Mat total_refined; // what the refinement left, to tell the pixels changed after it
+	if (params.refine_iterations > 0) {
+		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total,
+				params.points_at_refine_scale ? &refined : nullptr);
+		if (refined.scale > 1)
+			total_refined = total.clone();
+	}
 	if (params.flat_fill) {
 		const cv::Mat before = why ? valid.clone() : cv::Mat();
 		fill_flat_regions(grey_l, std_l, params, &valid, &total, &stats);
@@ -1023,22 +1043,57 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	cv::Mat border_px;
 	cv::distanceTransform(valid, border_px, cv::DIST_L2, 3);
 	cloud.points.reserve(size_t(stats.matched));
+	// One point at rectified (x, y) with disparity d, carrying matching pixel (px, py)'s
+	// confidence and border distance.
+	auto add_point = [&](double x, double y, double d, int px, int py) {
+		const double den = d - (rp.cx1 - rp.cx2);
+		if (std::fabs(den) < 1e-6 || rp.f * rp.baseline / den <= 0)
+			return;
+		const double z = rp.f * rp.baseline / den;
+		cloud.points.emplace_back(rectified_to_world(rp, a, x, y, d));
+		const bool interpolated = std_l.at<float>(py, px) <= 4 || (!bridged.empty() && bridged.at<uchar>(py, px));
+		cloud.confidence.push_back(interpolated ? float(params.flat_confidence)
+							: std::clamp(ncc.at<float>(py, px), 0.f, 1.f));
+		cloud.border_mm.push_back(float(border_px.at<float>(py, px) * z / rp.f));
+	};
+	// The refinement's measurement at camera pixel (u, v) of its grid, when it made one there, the
+	// matching pixels it lies between are all still matched, and the one it belongs to kept the
+	// refinement's value (flat refill changes some); NaN otherwise.
+	const int rk = refined.scale;
+	auto measured_at = [&](int x, int y, int i, int j) {
+		const float nan = std::numeric_limits<float>::quiet_NaN();
+		const int u = (x - refined.roi.x) * rk + i, v = (y - refined.roi.y) * rk + j;
+		if (u < 0 || v < 0 || u >= refined.disparity.cols || v >= refined.disparity.rows)
+			return nan;
+		if (x + (i > 0) >= rp.size.width || y + (j > 0) >= rp.size.height)
+			return nan;
+		for (int dy = 0; dy <= (j > 0); ++dy)
+			for (int dx = 0; dx <= (i > 0); ++dx)
+				if (!valid.at<uchar>(y + dy, x + dx))
+					return nan;
+		if (total.at<float>(y, x) != total_refined.at<float>(y, x))
+			return nan;
+		return refined.disparity.at<float>(v, u);
+	};
 	for (int y = 0; y < rp.size.height; ++y) {
 		const uchar *vr = valid.ptr<uchar>(y);
-		const float *tr = total.ptr<float>(y), *br = border_px.ptr<float>(y), *nr = ncc.ptr<float>(y);
-		const float *sr = std_l.ptr<float>(y);
+		const float *tr = total.ptr<float>(y);
 		for (int x = 0; x < rp.size.width; ++x) {
 			if (!vr[x])
 				continue;
-			const double den = tr[x] - (rp.cx1 - rp.cx2);
-			if (std::fabs(den) < 1e-6 || rp.f * rp.baseline / den <= 0)
+			// The matching pixel's own point; with the refinement's resolution, the camera
+			// pixels between it and the next matching pixels that the refinement measured.
+			add_point(x, y, tr[x], x, y);
+			if (rk < 2)
 				continue;
-			const cv::Point3d w = rectified_to_world(rp, a, x, y, tr[x]);
-			const double z = rp.f * rp.baseline / den;
-			cloud.points.emplace_back(w);
-			const bool interpolated = sr[x] <= 4 || (!bridged.empty() && bridged.at<uchar>(y, x));
-			cloud.confidence.push_back(interpolated ? float(params.flat_confidence) : std::clamp(nr[x], 0.f, 1.f));
-			cloud.border_mm.push_back(float(br[x] * z / rp.f));
+			for (int j = 0; j < rk; ++j)
+				for (int i = 0; i < rk; ++i) {
+					if (i == 0 && j == 0)
+						continue;
+					const float d = measured_at(x, y, i, j);
+					if (d == d)
+						add_point(x + double(i) / rk, y + double(j) / rk, d, x, y);
+				}
 		}
 	}
 	stats.points = int(cloud.points.size());

@@ -139,6 +139,12 @@ struct DenseParams {
 	double refine_scale = 2.0;
 	int refine_window = 13;
 	double refine_min_gradient = 2.0;
+	/// Points at the refinement's resolution: a matched pixel whose refinement_scale² camera
+	/// pixels the refinement measured (each its own Lucas-Kanade window) gives one point for each
+	/// of them, not one for the matching pixel; a pixel it did not measure (a flat square's
+	/// interior, a refilled or bridged one) gives its one point as before. No point is
+	/// interpolated. false: one point per matched pixel.
+	bool points_at_refine_scale = true;
 };
 
 /// One pair's dense points, world mm (before registration moves them).
@@ -262,10 +268,21 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 /// along the rows (DenseParams). Exposed for tests.
 cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const DenseParams &params);
 
+/// The refinement's own measurements at its resolution: pixel (u, v) of `disparity` is the
+/// camera-resolution pixel at matching coordinates (roi.x + u / scale, roi.y + v / scale); its
+/// value is the disparity there in matching pixels, NaN where the refinement did not measure it.
+struct RefinedDisparity {
+	cv::Rect roi;	   // matching pixels refined
+	int scale = 0;	   // camera pixels per matching pixel (0: none)
+	cv::Mat disparity; // CV_32F, roi.size() * scale
+};
+
 /// Refines `disparity` (rectified matching pixels, CV_32F, valid where `valid` != 0) in place by
 /// Lucas-Kanade along the rows on the pair rectified at params.refine_scale times `rp`'s scale.
+/// With `ret_refined` (and an integer refine_scale), also the refined disparity at that scale.
 void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity);
+		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
+		     RefinedDisparity *ret_refined = nullptr);
 
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
 /// the seeds). Frames are the pair's 8-bit BGR pattern frames.

@@ -16,7 +16,12 @@
 namespace facescan::recon {
 
 struct SurfaceParams {
-	double spacing_mm = 0.45;     // grid step on the sphere, at the surface's median radius
+	/// Grid step on the sphere, at the surface's median radius: about one camera pixel on the
+	/// face (0.25-0.4 mm on the random booths), now that the dense stage gives a point per pixel
+	/// the refinement measured (DenseParams::points_at_refine_scale; 0.45 before 2026-12-06,
+	/// with a point per matching pixel). Bench booths 101-112 (head 0): 2.7x the input points,
+	/// 1.6x the vertices (each still backed by ~1.8 points), RMS lower on 10 of 12.
+	double spacing_mm = 0.35;
 	double agree_mm = 1.2;	      // samples farther than this from a cell's strongest are not averaged
 	double border_floor_mm = 0.5; // weight = min(border distance, cap) + floor
 	double border_cap_mm = 15;
