@@ -317,7 +317,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	cv::boxFilter(L, muL, CV_32F, win);
 	const cv::Mat Lz = L - muL;
 	cv::Mat mx(size, CV_32F), my(size, CV_32F);
-	cv::Mat measured(size, CV_8U, cv::Scalar(0)); // pixels the refinement moved
+	cv::Mat measured(size, CV_8U, cv::Scalar(0)); // pixels the refinement measured (stepped)
 	for (int it = 0; it < params.refine_iterations; ++it) {
 		for (int y = 0; y < size.height; ++y) {
 			const float *dr = D.ptr<float>(y);
@@ -364,7 +364,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 		}
 	}
 	const int ik = int(std::lround(k));
-	if (ret_refined && ik >= 1 && std::fabs(k - ik) < 1e-9 && size == roi.size() * ik) {
+	if (ret_refined && ik >= 1 && std::fabs(k - ik) < 1e-9) {
 		ret_refined->roi = roi;
 		ret_refined->scale = ik;
 		ret_refined->disparity = cv::Mat(size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
