@@ -405,6 +405,7 @@ std::string report_json(const ReconReport &r)
 	j["sparse"] = {{"vertices", r.sparse_vertices}, {"triangles", r.sparse_triangles}};
 	j["surface"] = {{"input_points", r.surface.input_points}, {"cells", r.surface.cells},
 			{"merged", r.surface.merged}, {"vertices", r.surface.vertices},
+			{"outliers", r.surface.outliers}, {"trimmed", r.surface.trimmed},
 			{"triangles", r.surface.triangles}, {"spacing_mm", r.surface.spacing_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},

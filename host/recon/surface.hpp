@@ -34,6 +34,14 @@ struct SurfaceParams {
 	int median_radius = 3;	      // cells: the neighbourhood of the outlier test (0: none)
 	double max_median_dev_mm = 1.0; // farther from the neighbourhood's median radius: an outlier
 	double min_piece_fraction = 0.02; // connected pieces smaller than this * the largest are dropped
+	/// The surface's outline is trimmed by this many cells: a cell there is fed only by points at
+	/// their pairs' matched borders (1-2 mm off 5-8 times as often as inside: bench booth 103,
+	/// 111, fresh booth 3104), and the pairs' own rim (DenseParams::rim_px) is kept one pixel
+	/// narrower so that the border is trimmed once, here, where the pairs' overlaps have already
+	/// filled each other's rims. Holes of at most `pinhole_cells` cells (a cell no point fell in,
+	/// an outlier the median test dropped) are not outline and are not widened. 0: off.
+	int trim_border_cells = 1;
+	int pinhole_cells = 30;
 };
 
 struct SurfaceStats {
@@ -41,6 +49,7 @@ struct SurfaceStats {
 	int cells = 0;	     // grid cells with a radius
 	int merged = 0;	     // cells averaged from two or more pairs
 	int outliers = 0;    // cells dropped by the median test
+	int trimmed = 0;     // cells dropped on the surface's outline (trim_border_cells)
 	int piece_triangles_dropped = 0; // triangles of pieces split off the main surface
 	int vertices = 0, triangles = 0;
 	double spacing_mm = 0;

@@ -354,6 +354,59 @@ void fusion_makes_one_sheet(void **)
 	assert_int_equal(fuse_dense({}, cams, SurfaceParams(), &mesh, &stats).code(), -ENODATA);
 }
 
+// A sphere cap with a hole of about 4 x 4 cells in its middle: trimming takes about one cell off
+// the outline and nothing around the hole.
+void fusion_trims_the_outline_not_the_holes(void **)
+{
+	const std::vector<CameraModel> cams = synth::ring();
+	const double R = 90, deg = CV_PI / 180;
+	std::vector<DenseCloud> clouds(1);
+	for (double el = -20; el <= 20; el += 0.1)
+		for (double az = -20; az <= 20; az += 0.1) {
+			if (std::fabs(az) < 0.6 && std::fabs(el) < 0.6)
+				continue; // the hole: 1.9 mm across, the grid's 0.35 mm cells
+			const cv::Vec3d n(std::cos(el * deg) * std::sin(az * deg), std::sin(el * deg),
+					  std::cos(el * deg) * std::cos(az * deg));
+			clouds[0].points.emplace_back(cv::Point3d(n * R));
+			clouds[0].confidence.push_back(1.f);
+			clouds[0].border_mm.push_back(float(std::min(20 - std::fabs(az), 20 - std::fabs(el)) * deg * R));
+		}
+	// What each mesh covers: its extent in azimuth and how many vertices lie near the hole.
+	auto fuse = [&](int trim, double *ret_min_az, int *ret_near_hole, SurfaceStats *ret_stats) {
+		SurfaceParams params;
+		params.trim_border_cells = trim;
+		Mesh mesh;
+		assert_true(fuse_dense(clouds, cams, params, &mesh, ret_stats).ok());
+		*ret_min_az = 1e9;
+		*ret_near_hole = 0;
+		for (const cv::Point3f &p : mesh.positions) {
+			const double az = std::atan2(p.x, p.z) / deg, el = std::asin(p.y / cv::norm(p)) / deg;
+			*ret_min_az = std::min(*ret_min_az, az);
+			*ret_near_hole += std::fabs(az) < 1.5 && std::fabs(el) < 1.5;
+		}
+	};
+	double az0 = 0, az1 = 0;
+	int near0 = 0, near1 = 0;
+	SurfaceStats s0, s1;
+	fuse(0, &az0, &near0, &s0);
+	fuse(1, &az1, &near1, &s1);
+	const double cell_deg = s1.spacing_mm / R / deg;
+	std::printf("trim: %d cells off the outline, %d -> %d vertices; edge %.3f -> %.3f deg (cell %.3f); "
+		    "%d -> %d vertices near the hole\n",
+		    s1.trimmed, s0.vertices, s1.vertices, az0, az1, cell_deg, near0, near1);
+	assert_int_equal(s0.trimmed, 0);
+	assert_true(s1.trimmed > 0);
+	assert_int_equal(s0.vertices - s1.vertices, s1.trimmed);
+	// One cell off the outline: the edge moves in by about one cell, and the trimmed cells are
+	// about one ring around the 40 x 40 degree cap.
+	assert_true(az1 - az0 > 0.5 * cell_deg && az1 - az0 < 1.5 * cell_deg);
+	const double ring = 4 * 40 / cell_deg;
+	assert_true(s1.trimmed > 0.7 * ring && s1.trimmed < 1.3 * ring);
+	// The hole is not widened.
+	assert_true(near0 > 0);
+	assert_int_equal(near1, near0);
+}
+
 } // namespace
 
 // Flat squares: their interiors (no texture) carry a wrong disparity, as SGBM's smoothness leaves
@@ -765,6 +818,7 @@ int main(void)
 		cmocka_unit_test(refinement_starts_where_the_disparity_is),
 		cmocka_unit_test(steep_test_keeps_stretched_surfaces),
 		cmocka_unit_test(fusion_makes_one_sheet),
+		cmocka_unit_test(fusion_trims_the_outline_not_the_holes),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
