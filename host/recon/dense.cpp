@@ -237,6 +237,22 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 	return prior;
 }
 
+cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int shape)
+{
+	cv::Mat whole = mask.clone(), labels, hole_stats, centroids;
+	const int nl = cv::connectedComponentsWithStats(~mask, labels, hole_stats, centroids, 4, CV_32S);
+	for (int y = 0; y < mask.rows; ++y) {
+		const int *lr = labels.ptr<int>(y);
+		uchar *wr = whole.ptr<uchar>(y);
+		for (int x = 0; x < mask.cols; ++x)
+			if (lr[x] > 0 && lr[x] < nl && hole_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= pinhole_px)
+				wr[x] = 255;
+	}
+	cv::Mat eroded;
+	cv::erode(whole, eroded, cv::getStructuringElement(shape, cv::Size(3, 3)), cv::Point(-1, -1), iterations);
+	return eroded & mask;
+}
+
 cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const DenseParams &params)
 {
 	cv::Mat bad(valid.size(), CV_8U, cv::Scalar(0));
@@ -992,21 +1008,8 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	{
 		cv::Mat bad = steep_pixels(valid, total, params);
 		if (params.rim_px > 0) {
-			// Only the region's outline is a rim: pinholes SGBM left inside it are filled first
-			// so that erosion does not widen them.
-			cv::Mat filled = valid.clone(), labels, region_stats, centroids;
-			const int nl = cv::connectedComponentsWithStats(~valid, labels, region_stats, centroids, 4, CV_32S);
-			for (int y = 0; y < rp.size.height; ++y) {
-				const int *lr = labels.ptr<int>(y);
-				uchar *fr = filled.ptr<uchar>(y);
-				for (int x = 0; x < rp.size.width; ++x)
-					if (lr[x] > 0 && lr[x] < nl &&
-					    region_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= params.pinhole_px)
-						fr[x] = 255;
-			}
-			cv::Mat eroded;
-			cv::erode(filled, eroded, cv::Mat(), cv::Point(-1, -1), params.rim_px);
-			eroded &= valid;
+			// Only the region's outline is a rim: pinholes SGBM left inside it are not widened.
+			const cv::Mat eroded = erode_outline(valid, params.pinhole_px, params.rim_px, cv::MORPH_RECT);
 			cv::Mat rim = valid & ~eroded;
 			stats.rim += cv::countNonZero(rim);
 			if (why)

@@ -178,6 +178,12 @@ struct DenseStats {
 	double median_spacing_px = 0; // of the seeds, matching resolution
 };
 
+/// `mask` (CV_8U, 0 or 255) eroded by `iterations` steps of the 3 × 3 `shape` (cv::MORPH_RECT or
+/// cv::MORPH_CROSS) along its outline only: its holes of at most `pinhole_px` pixels (4-connected)
+/// count as inside, so they are not widened. The result lies within `mask`. The pairs' rim and the
+/// fused surface's outline are trimmed with it.
+cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int shape);
+
 /// Inside a flat square SGBM has nothing to match: its smoothness carries a disparity in from the
 /// square's edges along its few path directions, and the interior ends up tilted or offset (bench
 /// booth 111: flat points RMS 0.81 mm, textured 0.44). Each flat region (4-connected `valid` pixels

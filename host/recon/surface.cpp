@@ -199,24 +199,13 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		radius.swap(next);
 	}
 
-	// The outline: cells whose every neighbour within `trim_border_cells` has a radius stay, where
-	// a pinhole counts as having one (eroding around it would only widen it).
+	// The outline trimmed; a pinhole is not outline (eroding around it would only widen it).
 	if (params.trim_border_cells > 0) {
 		cv::Mat present(H, W, CV_8U, cv::Scalar(0));
 		for (size_t c = 0; c < n; ++c)
 			present.data[c] = radius[c] > 0 ? 255 : 0;
-		cv::Mat whole = present.clone(), labels, hole_stats, centroids;
-		cv::connectedComponentsWithStats(~present, labels, hole_stats, centroids, 4, CV_32S);
-		for (int y = 0; y < H; ++y) {
-			const int *lr = labels.ptr<int>(y);
-			uchar *wr = whole.ptr<uchar>(y);
-			for (int x = 0; x < W; ++x)
-				if (lr[x] > 0 && hole_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= params.pinhole_cells)
-					wr[x] = 255;
-		}
-		cv::Mat inner;
-		cv::erode(whole, inner, cv::getStructuringElement(cv::MORPH_CROSS, cv::Size(3, 3)), cv::Point(-1, -1),
-			  params.trim_border_cells);
+		const cv::Mat inner =
+			erode_outline(present, params.pinhole_cells, params.trim_border_cells, cv::MORPH_CROSS);
 		for (size_t c = 0; c < n; ++c)
 			if (radius[c] > 0 && !inner.data[c]) {
 				radius[c] = 0;
