@@ -200,22 +200,34 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 			      : tight.clone();
 	if (!params.coarse)
 		return coded ? loose : tight;
-	double lo, hi;
+	cv::Mat need = *ret_lit & ~has_value(tight), nz;
+	cv::findNonZero(need, nz);
+	if (nz.empty())
+		return tight;
+	const int lit_px = cv::countNonZero(*ret_lit);
+	stats->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	double lo = 0, hi = 0, vlo = 0, vhi = 0;
+	const bool volume = !coded || stats->seed_cover < params.min_seed_cover;
+	if (volume)
+		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &vlo, &vhi);
 	if (coded) {
 		lo = *std::min_element(seed_d.begin(), seed_d.end());
 		hi = *std::max_element(seed_d.begin(), seed_d.end());
 		const double margin = 0.15 * (hi - lo) + 2 * params.residual_px;
 		lo -= margin;
 		hi += margin;
+		if (volume && vhi > vlo) {
+			lo = std::min(lo, vlo);
+			hi = std::max(hi, vhi);
+			stats->coarse_over_volume = true;
+		}
 	} else {
-		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &lo, &hi);
-		if (!(hi > lo))
+		if (!(vhi > vlo))
 			return tight;
+		lo = vlo;
+		hi = vhi;
+		stats->coarse_over_volume = true;
 	}
-	cv::Mat need = *ret_lit & ~has_value(tight), nz;
-	cv::findNonZero(need, nz);
-	if (nz.empty())
-		return tight;
 	cv::Mat right;
 	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, cv::boundingRect(nz), params);

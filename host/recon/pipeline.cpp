@@ -370,6 +370,8 @@ std::string report_json(const ReconReport &r)
 				   {"flat_dropped", p.dense.flat_dropped},
 				   {"flat_unfitted_dropped", p.dense.flat_unfitted_dropped},
 				   {"dark_bridged", p.dense.dark_bridged},
+				   {"seed_cover", p.dense.seed_cover},
+				   {"coarse_over_volume", p.dense.coarse_over_volume},
 				   {"at_search_edge", p.dense.at_search_edge},
 				   {"steep", p.dense.steep},
 				   {"rim", p.dense.rim},

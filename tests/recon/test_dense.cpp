@@ -268,6 +268,56 @@ void coarse_search_works_without_code(void **)
 	assert_int_equal(cloud.points.size(), 0);
 }
 
+// Seeds from one small patch of the sphere (a pair that decodes only a corner of the face): their
+// disparities span a sliver of the sphere's, so a coarse search over their range alone finds
+// little of the rest; with the patch's triangles covering under `min_seed_cover` of the lit
+// pixels it spans the working volume's disparities too, and finds the sphere.
+void coarse_search_spans_the_volume_when_seeds_cluster(void **)
+{
+	SphereScene s;
+	render_sphere(&s);
+	const PartialModel all = sphere_seeds(s, 1, 2, 2);
+	// The patch: the seeds nearest the sphere's lit top (7 x 7 degrees of it).
+	cv::Point3d top(0, 1e9, 0);
+	for (const cv::Point3d &p : all.points)
+		if (p.y < top.y)
+			top = p;
+	PartialModel patch;
+	patch.cam_a = all.cam_a;
+	patch.cam_b = all.cam_b;
+	for (size_t i = 0; i < all.points.size(); ++i)
+		if (cv::norm(all.points[i] - top) < 10) {
+			patch.points.push_back(all.points[i]);
+			patch.sources.push_back(all.sources[i]);
+		}
+	assert_true(patch.points.size() >= 6);
+	DenseParams params;
+	params.scale = 1.0;
+	DenseParams seeds_only = params;
+	seeds_only.min_seed_cover = 0;
+	DenseCloud cloud, cloud_seeds;
+	DenseStats stats, stats_seeds;
+	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], patch, params, &cloud, &stats).ok());
+	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], patch, seeds_only, &cloud_seeds,
+			       &stats_seeds)
+			    .ok());
+	const Errors e = sphere_errors(s, cloud), es = sphere_errors(s, cloud_seeds);
+	std::printf("%d clustered seeds covering %.1f %% of the lit pixels: %zu points over the volume's range, "
+		    "median %.3f mm (the seeds' range only: %zu points, median %.3f mm)\n",
+		    stats.seeds, 100 * stats.seed_cover, e.n, e.median, es.n, es.median);
+	assert_true(stats.seed_cover > 0 && stats.seed_cover < params.min_seed_cover);
+	assert_true(stats.coarse_over_volume);
+	assert_false(stats_seeds.coarse_over_volume);
+	assert_true(double(e.n) > 1.5 * double(es.n));
+	assert_true(e.median < 0.2);
+	// Seeds all over the sphere cover it: their own range, as before.
+	DenseCloud spread;
+	DenseStats stats_spread;
+	assert_true(dense_pair(s.frames[1], s.frames[2], s.cams[1], s.cams[2], all, params, &spread, &stats_spread).ok());
+	assert_true(stats_spread.seed_cover > params.min_seed_cover);
+	assert_false(stats_spread.coarse_over_volume);
+}
+
 // Matches next to a pixel SGBM refused are unsure (a mismatch or an occlusion beside them): with
 // the margin off, the unseeded sphere keeps them and its tail of errors grows (measured p95 0.560
 // against 0.550 mm with SGBM's 3 px block and the 1 px margin; 0.60 against 0.53 with the 5 px
@@ -808,6 +858,7 @@ int main(void)
 		cmocka_unit_test(prior_is_linear_in_its_triangles),
 		cmocka_unit_test(dense_points_lie_on_the_sphere),
 		cmocka_unit_test(coarse_search_works_without_code),
+		cmocka_unit_test(coarse_search_spans_the_volume_when_seeds_cluster),
 		cmocka_unit_test(matches_beside_refused_pixels_dropped),
 		cmocka_unit_test(dense_refuses_bad_input),
 		cmocka_unit_test(flat_squares_refilled_from_their_edges),
