@@ -198,14 +198,14 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 	cv::Mat loose = coded ? disparity_prior(rp.size, seeds, seed_d, params.max_seed_edge_factor,
 						 params.extrapolate_spacings, nullptr)
 			      : tight.clone();
-	if (!params.coarse)
-		return coded ? loose : tight;
 	cv::Mat need = *ret_lit & ~has_value(tight), nz;
 	cv::findNonZero(need, nz);
-	if (nz.empty())
-		return tight;
 	const int lit_px = cv::countNonZero(*ret_lit);
 	stats->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	if (!params.coarse)
+		return coded ? loose : tight;
+	if (nz.empty())
+		return tight;
 	double lo = 0, hi = 0, vlo = 0, vhi = 0;
 	const bool volume = !coded || stats->seed_cover < params.min_seed_cover;
 	if (volume)
