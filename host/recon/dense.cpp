@@ -206,28 +206,26 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 		return coded ? loose : tight;
 	if (nz.empty())
 		return tight;
-	double lo = 0, hi = 0, vlo = 0, vhi = 0;
-	const bool volume = !coded || stats->seed_cover < params.min_seed_cover;
-	if (volume)
-		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &vlo, &vhi);
+	// The seeds' range, widened to the working volume's when they are none or in one corner.
+	double lo = std::numeric_limits<double>::infinity(), hi = -lo;
 	if (coded) {
 		lo = *std::min_element(seed_d.begin(), seed_d.end());
 		hi = *std::max_element(seed_d.begin(), seed_d.end());
 		const double margin = 0.15 * (hi - lo) + 2 * params.residual_px;
 		lo -= margin;
 		hi += margin;
-		if (volume && vhi > vlo) {
+	}
+	if (!coded || stats->seed_cover < params.min_seed_cover) {
+		double vlo, vhi;
+		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &vlo, &vhi);
+		if (vhi > vlo) {
 			lo = std::min(lo, vlo);
 			hi = std::max(hi, vhi);
 			stats->coarse_over_volume = true;
 		}
-	} else {
-		if (!(vhi > vlo))
-			return tight;
-		lo = vlo;
-		hi = vhi;
-		stats->coarse_over_volume = true;
 	}
+	if (!(hi > lo))
+		return tight;
 	cv::Mat right;
 	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, cv::boundingRect(nz), params);
@@ -252,12 +250,12 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int shape)
 {
 	cv::Mat whole = mask.clone(), labels, hole_stats, centroids;
-	const int nl = cv::connectedComponentsWithStats(~mask, labels, hole_stats, centroids, 4, CV_32S);
+	cv::connectedComponentsWithStats(~mask, labels, hole_stats, centroids, 4, CV_32S);
 	for (int y = 0; y < mask.rows; ++y) {
 		const int *lr = labels.ptr<int>(y);
 		uchar *wr = whole.ptr<uchar>(y);
 		for (int x = 0; x < mask.cols; ++x)
-			if (lr[x] > 0 && lr[x] < nl && hole_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= pinhole_px)
+			if (lr[x] > 0 && hole_stats.at<int>(lr[x], cv::CC_STAT_AREA) <= pinhole_px)
 				wr[x] = 255;
 	}
 	cv::Mat eroded;
