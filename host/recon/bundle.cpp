@@ -259,7 +259,13 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 	};
 	for (const PairMatches &pm : pairs)
 		for (const PointMatch &m : pm.matches) {
-			if (m.square_a < 0 || m.square_b < 0)
+			// Corners only. A corner is where two edges cross, one surface point in every view;
+			// the centroid of a square's image is not the image of one surface point (perspective
+			// and relief shift it differently in each view). At the true calibration of a
+			// held-out scene (booth 3004, scanned head) corners were 0.05-0.11 px off their
+			// epipolar geometry, centroids 0.3-0.7 px; their common pull turned a pair by
+			// 0.3 mrad and moved its sheet 0.7 mm.
+			if (m.square_a < 0 || m.square_b < 0 || m.feature == kCentroid)
 				continue;
 			const int a = id_of(pm.cam_a, m.square_a, m.feature, m.a);
 			const int b = id_of(pm.cam_b, m.square_b, m.feature, m.b);

@@ -44,7 +44,7 @@ struct BundleCamera {
 
 struct BundleStats {
 	bool applied = false;
-	int tracks = 0;		  // distinct surface points (a square's corner or centre)
+	int tracks = 0;		  // distinct surface points (a square's corner)
 	int tracks_3_views = 0;	  // ... seen by three cameras or more (two pairs)
 	int observations = 0;
 	double rms_before_px = 0; // reprojection of the tracks' best points, before and after
@@ -53,8 +53,9 @@ struct BundleStats {
 };
 
 /// Refines the rotations and centres of `cameras` (intrinsics fixed) on the tracks the pairs'
-/// code matches form: pair p's match and pair p+1's that share a feature of one square in camera
-/// p+1 are one surface point. Minimises the matched points' reprojection error (robust) plus the
+/// code matches of square corners form (centroids are not used: the centroid of a square's image
+/// is not the image of one surface point): pair p's match and pair p+1's that share a corner of
+/// one square in camera p+1 are one surface point. Minimises the matched points' reprojection error (robust) plus the
 /// calibration prior. With fewer than `min_tracks` tracks, or when disabled, `cameras` is left
 /// untouched and stats->applied is false. -EINVAL when a match names a camera outside `cameras`.
 Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundleParams &params,

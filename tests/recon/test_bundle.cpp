@@ -53,6 +53,7 @@ Scene make_scene(double noise_px, double wrong_fraction, unsigned seed)
 			m.a = seen[size_t(p)][i];
 			m.b = seen[size_t(p + 1)][i];
 			m.square_a = m.square_b = int(i);
+			m.feature = kTopLeft; // a corner: one surface point in every view
 			if (u01(rng) < wrong_fraction) // a wrong copy: 15 px off along the row
 				m.b.x += 15;
 			pm.matches.push_back(m);
@@ -125,6 +126,35 @@ static void refined_cameras_triangulate_nearer_the_truth(void **)
 	}
 }
 
+// A square's centroid in one image is not the image of its centroid in another: perspective and
+// relief shift it, here by 0.6 px across the rows in the second camera of every pair (on a held-out
+// scene, 0.3-0.7 px). Added beside the corners, such matches must not move the cameras.
+static void centroids_do_not_move_the_cameras(void **)
+{
+	Scene s = make_scene(0.1, 0.0, 5);
+	std::vector<PairMatches> with_centroids = s.pairs;
+	for (PairMatches &pm : with_centroids) {
+		const size_t corners = pm.matches.size();
+		for (size_t k = 0; k < corners; ++k) {
+			PointMatch m = pm.matches[k];
+			m.feature = kCentroid;
+			m.b.y += 0.6;
+			pm.matches.push_back(m);
+		}
+	}
+	std::vector<CameraModel> corners_only = s.written, with = s.written;
+	BundleStats stats_corners, stats_with;
+	assert_true(refine_extrinsics(s.pairs, BundleParams(), &corners_only, &stats_corners).ok());
+	assert_true(refine_extrinsics(with_centroids, BundleParams(), &with, &stats_with).ok());
+	assert_true(stats_with.applied);
+	assert_int_equal(stats_with.tracks, stats_corners.tracks);
+	for (size_t c = 0; c < with.size(); ++c) {
+		assert_true(cv::norm(with[c].R - corners_only[c].R) == 0);
+		assert_true(cv::norm(with[c].T - corners_only[c].T) == 0);
+	}
+	assert_true(triangulation_rms(s, with) < triangulation_rms(s, s.written));
+}
+
 static void too_few_tracks_or_disabled_leave_the_calibration(void **)
 {
 	Scene s = make_scene(0.1, 0.0, 4);
@@ -161,6 +191,7 @@ int main(void)
 {
 	const struct CMUnitTest tests[] = {
 		cmocka_unit_test(refined_cameras_triangulate_nearer_the_truth),
+		cmocka_unit_test(centroids_do_not_move_the_cameras),
 		cmocka_unit_test(too_few_tracks_or_disabled_leave_the_calibration),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
