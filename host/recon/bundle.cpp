@@ -6,6 +6,7 @@
 // numerical Jacobian solves it in a few milliseconds. The intrinsics stay as calibrated: a
 // principal point or focal error of a few tenths of a pixel is taken up by a small rotation.
 #include "recon/bundle.hpp"
+#include "recon/triangulate.hpp"
 
 #include <opencv2/calib3d.hpp>
 
@@ -14,7 +15,6 @@
 #include <opencv2/core/eigen.hpp>
 #include <opencv2/core/utility.hpp>
 #include <unsupported/Eigen/NonLinearOptimization>
-#include <unsupported/Eigen/NumericalDiff>
 
 #include <algorithm>
 #include <cerrno>
@@ -71,10 +71,16 @@ bool triangulate_track(const std::vector<Pose> &poses, const Observation *obs, s
 			b += row.transpose() * rhs;
 		}
 	}
-	Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
-	if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-12))
+	// 3 x 3: the closed-form inverse (the residuals evaluate this for every track, once per
+	// parameter and step); a near-singular system (parallel rays) has no point.
+	Eigen::Matrix3d inverse;
+	bool invertible = false;
+	double det = 0;
+	const double scale = A.trace();
+	A.computeInverseAndDetWithCheck(inverse, det, invertible, 1e-12 * scale * scale * scale);
+	if (!invertible || !(det > 0))
 		return false;
-	Eigen::Vector3d X = ldlt.solve(b);
+	Eigen::Vector3d X = inverse * b;
 	// One Gauss-Newton step on the normalised reprojection error: the linear solution weighs
 	// the views by depth.
 	for (int it = 0; it < 1; ++it) {
@@ -93,10 +99,11 @@ bool triangulate_track(const std::vector<Pose> &poses, const Observation *obs, s
 			H += JR.transpose() * JR;
 			g += JR.transpose() * r;
 		}
-		Eigen::LDLT<Eigen::Matrix3d> step(H);
-		if (step.info() != Eigen::Success)
+		const double h_scale = H.trace();
+		H.computeInverseAndDetWithCheck(inverse, det, invertible, 1e-12 * h_scale * h_scale * h_scale);
+		if (!invertible)
 			return false;
-		X -= step.solve(g);
+		X -= inverse * g;
 	}
 	for (size_t k = 0; k < count; ++k) {
 		const Pose &p = poses[size_t(obs[k].camera)];
@@ -113,20 +120,27 @@ struct Problem {
 	std::vector<Observation> obs;		// grouped by track
 	std::vector<std::pair<size_t, size_t>> tracks; // [begin, end) into obs
 	std::vector<double> weight;		// per observation (Huber)
+	std::vector<std::vector<int>> camera_tracks; // per camera, the tracks that see it
 
-	// Pixel residuals of every observation (x then y), 0 for a track that cannot be triangulated.
-	void residuals(const Eigen::VectorXd &x, Eigen::VectorXd *r) const
+	// Pixel residuals of every observation (x then y), 0 for a track that cannot be triangulated;
+	// with `only`, of those tracks' observations alone (the others in *r are left as they are).
+	void residuals(const Eigen::VectorXd &x, Eigen::VectorXd *r, const std::vector<int> *only = nullptr) const
 	{
 		const std::vector<Pose> poses = poses_at(*cams, *params, x);
-		r->setZero(Eigen::Index(2 * obs.size()));
+		if (!only)
+			r->setZero(Eigen::Index(2 * obs.size()));
 		// Tracks are independent and each writes only its own observations' residuals; the
-		// numerical Jacobian evaluates this 6 n + 1 times per step, the stage's whole cost.
-		cv::parallel_for_(cv::Range(0, int(tracks.size())), [&](const cv::Range &range) {
-			for (int t = range.start; t < range.end; ++t) {
-				const auto &[begin, end] = tracks[size_t(t)];
+		// numerical Jacobian evaluates this once per parameter (over the tracks that parameter's
+		// camera sees) and step, the stage's whole cost.
+		const int count = int(only ? only->size() : tracks.size());
+		cv::parallel_for_(cv::Range(0, count), [&](const cv::Range &range) {
+			for (int i = range.start; i < range.end; ++i) {
+				const auto &[begin, end] = tracks[size_t(only ? (*only)[size_t(i)] : i)];
 				Eigen::Vector3d X;
-				if (!triangulate_track(poses, &obs[begin], end - begin, &X))
+				if (!triangulate_track(poses, &obs[begin], end - begin, &X)) {
+					r->segment(Eigen::Index(2 * begin), Eigen::Index(2 * (end - begin))).setZero();
 					continue;
+				}
 				for (size_t k = begin; k < end; ++k) {
 					const Pose &p = poses[size_t(obs[k].camera)];
 					const CameraModel &c = (*cams)[size_t(obs[k].camera)];
@@ -163,6 +177,38 @@ struct Cost {
 			fvec[Eigen::Index(2 * k + 1)] = r[Eigen::Index(2 * k + 1)] * w;
 		}
 		fvec.tail(x.size()) = x;
+		return 0;
+	}
+
+	// Forward differences with Eigen::NumericalDiff's step, but a camera's parameters move only
+	// the residuals of the tracks that camera sees: each column re-evaluates those alone.
+	int df(const Eigen::VectorXd &x, Eigen::MatrixXd &fjac) const
+	{
+		const double eps = std::sqrt(Eigen::NumTraits<double>::epsilon());
+		Eigen::VectorXd r0, r1;
+		problem->residuals(x, &r0);
+		const double s = 1.0 / problem->params->sigma_px;
+		fjac.setZero(values(), inputs());
+		for (Eigen::Index j = 0; j < x.size(); ++j) {
+			const std::vector<int> &seen = problem->camera_tracks[size_t(j / 6)];
+			Eigen::VectorXd xj = x;
+			double h = eps * std::fabs(x[j]);
+			if (h == 0.)
+				h = eps;
+			xj[j] += h;
+			r1 = r0;
+			problem->residuals(xj, &r1, &seen);
+			for (int t : seen) {
+				const auto &[begin, end] = problem->tracks[size_t(t)];
+				for (size_t k = begin; k < end; ++k) {
+					const double w = std::sqrt(problem->weight[k]) * s / h;
+					fjac(Eigen::Index(2 * k), j) = (r1[Eigen::Index(2 * k)] - r0[Eigen::Index(2 * k)]) * w;
+					fjac(Eigen::Index(2 * k + 1), j) =
+						(r1[Eigen::Index(2 * k + 1)] - r0[Eigen::Index(2 * k + 1)]) * w;
+				}
+			}
+			fjac(Eigen::Index(2 * problem->obs.size()) + j, j) = 1.0;
+		}
 		return 0;
 	}
 };
@@ -227,7 +273,8 @@ void keep_gauge(const std::vector<CameraModel> &cams, std::vector<Pose> *poses)
 
 } // namespace
 
-Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundleParams &params,
+Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vector<Track> &extra_tracks,
+			 const BundleParams &params,
 			 std::vector<CameraModel> *cameras, BundleStats *stats)
 {
 	*stats = BundleStats();
@@ -312,7 +359,40 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 		problem.tracks.push_back({begin, problem.obs.size()});
 		stats->tracks_3_views += list.size() >= 3;
 	}
+	std::vector<std::vector<cv::Point2d>> extra_px(static_cast<size_t>(n));
+	std::vector<std::vector<size_t>> extra_obs(static_cast<size_t>(n));
+	for (const Track &t : extra_tracks) {
+		if (t.cameras.size() < 2 || t.cameras.size() != t.pixels.size())
+			continue;
+		bool inside = true;
+		for (int c : t.cameras)
+			inside = inside && c >= 0 && c < n;
+		if (!inside)
+			continue;
+		const size_t begin = problem.obs.size();
+		for (size_t k = 0; k < t.cameras.size(); ++k) {
+			extra_px[size_t(t.cameras[k])].push_back(t.pixels[k]);
+			extra_obs[size_t(t.cameras[k])].push_back(problem.obs.size());
+			problem.obs.push_back({t.cameras[k], Eigen::Vector2d::Zero()});
+		}
+		problem.tracks.push_back({begin, problem.obs.size()});
+		stats->extra_tracks++;
+		stats->tracks_3_views += t.cameras.size() >= 3;
+	}
+	for (int c = 0; c < n; ++c) {
+		if (extra_px[size_t(c)].empty())
+			continue;
+		const CameraModel &cam = (*cameras)[size_t(c)];
+		std::vector<cv::Point2d> out;
+		cv::undistortPoints(extra_px[size_t(c)], out, cam.K, cam.dist);
+		for (size_t k = 0; k < out.size(); ++k)
+			problem.obs[extra_obs[size_t(c)][k]].xy = Eigen::Vector2d(out[k].x, out[k].y);
+	}
 	stats->tracks = int(problem.tracks.size());
+	problem.camera_tracks.assign(size_t(n), {});
+	for (size_t t = 0; t < problem.tracks.size(); ++t)
+		for (size_t k = problem.tracks[t].first; k < problem.tracks[t].second; ++k)
+			problem.camera_tracks[size_t(problem.obs[k].camera)].push_back(int(t));
 	stats->observations = int(problem.obs.size());
 	if (stats->tracks < params.min_tracks)
 		return {};
@@ -332,8 +412,7 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 		}
 		Cost cost;
 		cost.problem = &problem;
-		Eigen::NumericalDiff<Cost> diff(cost);
-		Eigen::LevenbergMarquardt<Eigen::NumericalDiff<Cost>, double> lm(diff);
+		Eigen::LevenbergMarquardt<Cost, double> lm(cost);
 		lm.parameters.maxfev = params.max_iterations * (6 * n + 1);
 		lm.minimize(x);
 		problem.residuals(x, &r);
@@ -359,6 +438,175 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const BundlePara
 	}
 	stats->applied = true;
 	return {};
+}
+
+void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
+			const BundleParams &params, std::vector<Track> *tracks)
+{
+	tracks->clear();
+	if (params.chain_cell_px <= 0)
+		return;
+	const int n = int(cameras.size());
+	auto project = [](const CameraModel &cam, const std::vector<cv::Point3f> &points, std::vector<cv::Point2f> *px,
+			  std::vector<float> *depth) {
+		cv::Vec3d rvec;
+		cv::Rodrigues(cam.R, rvec);
+		px->clear();
+		if (!points.empty())
+			cv::projectPoints(points, rvec, cam.T, cam.K, cam.dist, *px);
+		depth->resize(points.size());
+		for (size_t i = 0; i < points.size(); ++i)
+			(*depth)[i] = float((cam.R * cv::Vec3d(points[i].x, points[i].y, points[i].z) + cam.T)[2]);
+	};
+	for (size_t p = 0; p + 1 < clouds.size(); ++p) {
+		const DenseCloud &A = clouds[p], &B = clouds[p + 1];
+		if (A.points.empty() || B.points.empty() || A.cam_b != B.cam_a || A.cam_a < 0 || A.cam_a >= n ||
+		    A.cam_b < 0 || A.cam_b >= n || B.cam_b < 0 || B.cam_b >= n)
+			continue;
+		const CameraModel &ca = cameras[size_t(A.cam_a)], &cm = cameras[size_t(A.cam_b)],
+				  &cc = cameras[size_t(B.cam_b)];
+		const cv::Size size = cm.size;
+		if (size.width <= 0 || size.height <= 0)
+			continue;
+		// B's points in the shared camera, bucketed by 4 px cells.
+		std::vector<cv::Point2f> bpx;
+		std::vector<float> bz;
+		project(cm, B.points, &bpx, &bz);
+		const int g = 4, gw = (size.width + g - 1) / g, gh = (size.height + g - 1) / g;
+		std::vector<int> start(size_t(gw * gh) + 1, 0), order(bpx.size());
+		auto cell_of = [&](const cv::Point2f &q) {
+			const int x = int(std::floor(q.x / float(g))), y = int(std::floor(q.y / float(g)));
+			return x >= 0 && y >= 0 && x < gw && y < gh ? y * gw + x : -1;
+		};
+		for (const cv::Point2f &q : bpx) {
+			const int c = cell_of(q);
+			if (c >= 0)
+				start[size_t(c) + 1]++;
+		}
+		for (size_t c = 0; c + 1 < start.size(); ++c)
+			start[c + 1] += start[c];
+		{
+			std::vector<int> fill(start.begin(), start.end() - 1);
+			for (size_t i = 0; i < bpx.size(); ++i) {
+				const int c = cell_of(bpx[i]);
+				if (c >= 0)
+					order[size_t(fill[size_t(c)]++)] = int(i);
+			}
+		}
+		// A's most confident point per chain cell of the shared camera.
+		std::vector<cv::Point2f> apx;
+		std::vector<float> az;
+		project(cm, A.points, &apx, &az);
+		const int s = params.chain_cell_px, sw = (size.width + s - 1) / s, sh = (size.height + s - 1) / s;
+		std::vector<int> best(size_t(sw * sh), -1);
+		for (size_t i = 0; i < apx.size(); ++i) {
+			const int x = int(std::floor(apx[i].x / float(s))), y = int(std::floor(apx[i].y / float(s)));
+			if (x < 0 || y < 0 || x >= sw || y >= sh)
+				continue;
+			int &b = best[size_t(y * sw + x)];
+			const float conf = i < A.confidence.size() ? A.confidence[i] : 0.f;
+			if (b < 0 || conf > (size_t(b) < A.confidence.size() ? A.confidence[size_t(b)] : 0.f))
+				b = int(i);
+		}
+		std::vector<int> kept;
+		std::vector<cv::Point2f> kept_px;
+		std::vector<double> kept_z;
+		for (int i : best) {
+			if (i < 0)
+				continue;
+			const cv::Point2f u = apx[size_t(i)];
+			// B's surface along u's ray: a plane z = a + b dx + c dy fitted to its points within 2 g.
+			Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+			Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
+			std::vector<std::tuple<double, double, double>> near;
+			const int cx = int(u.x / float(g)), cy = int(u.y / float(g));
+			for (int y = cy - 2; y <= cy + 2; ++y)
+				for (int x = cx - 2; x <= cx + 2; ++x) {
+					if (x < 0 || y < 0 || x >= gw || y >= gh)
+						continue;
+					const int c = y * gw + x;
+					for (int k = start[size_t(c)]; k < start[size_t(c) + 1]; ++k) {
+						const int j = order[size_t(k)];
+						const double dx = bpx[size_t(j)].x - u.x, dy = bpx[size_t(j)].y - u.y;
+						if (dx * dx + dy * dy > 4.0 * g * g)
+							continue;
+						const Eigen::Vector3d row(1, dx, dy);
+						H += row * row.transpose();
+						rhs += row * double(bz[size_t(j)]);
+						near.emplace_back(dx, dy, double(bz[size_t(j)]));
+					}
+				}
+			if (near.size() < 6)
+				continue;
+			Eigen::LDLT<Eigen::Matrix3d> ldlt(H);
+			if (ldlt.info() != Eigen::Success || !(ldlt.rcond() > 1e-9))
+				continue;
+			const Eigen::Vector3d plane = ldlt.solve(rhs);
+			double ss = 0;
+			for (const auto &[dx, dy, z] : near) {
+				const double e = z - (plane[0] + plane[1] * dx + plane[2] * dy);
+				ss += e * e;
+			}
+			const double zb = plane[0];
+			if (!(std::sqrt(ss / double(near.size())) <= params.chain_fit_mm) ||
+			    !(std::fabs(zb - double(az[size_t(i)])) <= params.chain_gap_mm) || !(zb > 0))
+				continue;
+			kept.push_back(i);
+			kept_px.push_back(u);
+			kept_z.push_back(zb);
+		}
+		if (kept.empty())
+			continue;
+		// B's surface point on each kept pixel's ray, seen by camera p+2; A's point seen by camera p.
+		std::vector<cv::Point2f> rays;
+		cv::undistortPoints(kept_px, rays, cm.K, cm.dist);
+		std::vector<cv::Point3d> on_b(kept.size()), on_a(kept.size());
+		for (size_t k = 0; k < kept.size(); ++k) {
+			const double z = kept_z[k];
+			on_b[k] = cv::Point3d(cm.R.t() * (cv::Vec3d(rays[k].x * z, rays[k].y * z, z) - cm.T));
+			on_a[k] = cv::Point3d(A.points[size_t(kept[k])]);
+		}
+		const std::vector<cv::Point2d> uc = project_points(cc, on_b), ua = project_points(ca, on_a);
+		auto inside = [](const cv::Point2d &q, const cv::Size &sz) {
+			return q.x >= 0 && q.y >= 0 && q.x < sz.width && q.y < sz.height;
+		};
+		for (size_t k = 0; k < kept.size(); ++k)
+			if (inside(uc[k], cc.size) && inside(ua[k], ca.size))
+				tracks->push_back({{A.cam_a, A.cam_b, B.cam_b}, {ua[k], cv::Point2d(kept_px[k]), uc[k]}});
+	}
+}
+
+void retriangulate_clouds(const std::vector<CameraModel> &before, const std::vector<CameraModel> &after,
+			  std::vector<DenseCloud> *clouds)
+{
+	const int n = int(std::min(before.size(), after.size()));
+	for (DenseCloud &cloud : *clouds) {
+		if (cloud.cam_a < 0 || cloud.cam_a >= n || cloud.cam_b < 0 || cloud.cam_b >= n)
+			continue;
+		const CameraModel &a0 = before[size_t(cloud.cam_a)], &b0 = before[size_t(cloud.cam_b)];
+		const CameraModel &a1 = after[size_t(cloud.cam_a)], &b1 = after[size_t(cloud.cam_b)];
+		const cv::Vec3d ca = a1.centre(), cb = b1.centre();
+		// The intrinsics do not change, so a point's ray in camera coordinates is the same before
+		// and after: turned into the world by the new rotation, from the new centre. The two rays
+		// nearly meet (the cameras moved by tenths of a pixel): their midpoint.
+		const cv::Matx33d ra = a1.R.t() * a0.R, rb = b1.R.t() * b0.R;
+		const cv::Vec3d ca0 = a0.centre(), cb0 = b0.centre();
+		cv::parallel_for_(cv::Range(0, int(cloud.points.size())), [&](const cv::Range &range) {
+			for (int i = range.start; i < range.end; ++i) {
+				cv::Point3f &P = cloud.points[size_t(i)];
+				const cv::Vec3d X(P.x, P.y, P.z);
+				const cv::Vec3d da = ra * (X - ca0), db = rb * (X - cb0);
+				const cv::Vec3d w = ca - cb;
+				const double aa = da.dot(da), ab = da.dot(db), bb = db.dot(db), aw = da.dot(w), bw = db.dot(w);
+				const double den = aa * bb - ab * ab;
+				if (!(den > 1e-12 * aa * bb))
+					continue;
+				const double sa = (ab * bw - bb * aw) / den, sb = (aa * bw - ab * aw) / den;
+				const cv::Vec3d M = 0.5 * ((ca + sa * da) + (cb + sb * db));
+				P = cv::Point3f(float(M[0]), float(M[1]), float(M[2]));
+			}
+		});
+	}
 }
 
 } // namespace facescan::recon

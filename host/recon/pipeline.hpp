@@ -81,6 +81,7 @@ struct ReconReport {
 	std::vector<CameraReport> cameras;
 	std::vector<PairReport> pairs;
 	BundleStats bundle; // stage 6a: the extrinsics refined on the scan's matches
+	BundleStats bundle_dense; // ... again, with the dense clouds' three-view tracks
 	std::vector<RegistrationPair> registration;
 	FusionStats fusion;   // the sparse mesh
 	SurfaceStats surface; // the dense one (when dense matching ran)

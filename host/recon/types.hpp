@@ -63,6 +63,13 @@ struct PairMatches {
 	int pruned = 0; // grown, guided or centroid-only squares removed as off their neighbours' surface
 };
 
+/// One surface point seen by two or more cameras: its distorted pixel in each (index k of
+/// `cameras` and `pixels` is one view).
+struct Track {
+	std::vector<int> cameras;
+	std::vector<cv::Point2d> pixels;
+};
+
 /// One pair's partial model, points in world mm. Index i of every vector is one point.
 struct PartialModel {
 	int cam_a = -1, cam_b = -1;
