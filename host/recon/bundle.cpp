@@ -570,9 +570,13 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 		auto inside = [](const cv::Point2d &q, const cv::Size &sz) {
 			return q.x >= 0 && q.y >= 0 && q.x < sz.width && q.y < sz.height;
 		};
+		std::vector<Track> junction;
 		for (size_t k = 0; k < kept.size(); ++k)
 			if (inside(uc[k], cc.size) && inside(ua[k], ca.size))
-				tracks->push_back({{A.cam_a, A.cam_b, B.cam_b}, {ua[k], cv::Point2d(kept_px[k]), uc[k]}});
+				junction.push_back({{A.cam_a, A.cam_b, B.cam_b}, {ua[k], cv::Point2d(kept_px[k]), uc[k]}});
+		// A handful of tracks would let one mismatch set the pairs' relative depth.
+		if (int(junction.size()) >= params.chain_min_tracks)
+			tracks->insert(tracks->end(), junction.begin(), junction.end());
 	}
 }
 

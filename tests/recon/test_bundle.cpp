@@ -242,6 +242,12 @@ static void chained_dense_tracks_tie_the_pairs(void **)
 	assert_true(tracks.size() > 300);
 	for (const Track &t : tracks)
 		assert_int_equal(int(t.cameras.size()), 3);
+	// Too few through a camera: none of them.
+	BundleParams few;
+	few.chain_min_tracks = int(tracks.size()) + 1;
+	std::vector<Track> none;
+	chain_dense_tracks(written.clouds, s.written, few, &none);
+	assert_true(none.empty());
 
 	std::vector<CameraModel> code_only = s.written, chained = s.written;
 	BundleStats stats_code, stats_chained;
