@@ -71,12 +71,13 @@ struct BundleStats {
 /// Refines the rotations and centres of `cameras` (intrinsics fixed) on the tracks the pairs'
 /// code matches of square corners form (centroids are not used: the centroid of a square's image
 /// is not the image of one surface point): pair p's match and pair p+1's that share a corner of
-/// one square in camera p+1 are one surface point. Minimises the matched points' reprojection error (robust) plus the
-/// calibration prior. With fewer than `min_tracks` tracks, or when disabled, `cameras` is left
-/// untouched and stats->applied is false. -EINVAL when a match names a camera outside `cameras`.
+/// one square in camera p+1 are one surface point. `extra_tracks` (stage 6b's chained tracks;
+/// empty in stage 6a) are added as they are; one naming a camera outside `cameras` is skipped.
+/// Minimises the tracks' reprojection error (robust) plus the calibration prior. With fewer
+/// than `min_tracks` tracks, or when disabled, `cameras` is left untouched and stats->applied is
+/// false. -EINVAL when a match names a camera outside `cameras`.
 Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vector<Track> &extra_tracks,
-			 const BundleParams &params,
-			 std::vector<CameraModel> *cameras, BundleStats *stats);
+			 const BundleParams &params, std::vector<CameraModel> *cameras, BundleStats *stats);
 
 /// Three-view tracks from the dense clouds of consecutive pairs (BundleParams::chain_*): a point
 /// of pair (p, p+1)'s cloud, its pixel in camera p+1, and pair (p+1, p+2)'s surface along that
