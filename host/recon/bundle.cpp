@@ -318,23 +318,6 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vecto
 			const int b = id_of(pm.cam_b, m.square_b, m.feature, m.b);
 			parent[size_t(root(a))] = root(b);
 		}
-	// Undistorted once: the intrinsics do not change.
-	std::vector<cv::Point2d> xy(point_px.size());
-	for (int c = 0; c < n; ++c) {
-		std::vector<cv::Point2d> in, out;
-		std::vector<size_t> idx;
-		for (size_t i = 0; i < point_px.size(); ++i)
-			if (point_cam[i] == c) {
-				in.push_back(point_px[i]);
-				idx.push_back(i);
-			}
-		if (in.empty())
-			continue;
-		const CameraModel &cam = (*cameras)[size_t(c)];
-		cv::undistortPoints(in, out, cam.K, cam.dist);
-		for (size_t k = 0; k < idx.size(); ++k)
-			xy[idx[k]] = out[k];
-	}
 	std::map<int, std::vector<int>> members;
 	for (size_t i = 0; i < parent.size(); ++i)
 		members[root(int(i))].push_back(int(i));
@@ -342,6 +325,7 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vecto
 	Problem problem;
 	problem.cams = cameras;
 	problem.params = &params;
+	std::vector<cv::Point2d> obs_px; // each observation's pixel, undistorted below
 	for (const auto &[r, list] : members) {
 		(void)r;
 		// One view per camera: two image points of one camera in one track mean two squares
@@ -353,14 +337,13 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vecto
 		if (std::adjacent_find(cams_seen.begin(), cams_seen.end()) != cams_seen.end() || list.size() < 2)
 			continue;
 		const size_t begin = problem.obs.size();
-		for (int i : list)
-			problem.obs.push_back({point_cam[size_t(i)],
-					       Eigen::Vector2d(xy[size_t(i)].x, xy[size_t(i)].y)});
+		for (int i : list) {
+			problem.obs.push_back({point_cam[size_t(i)], Eigen::Vector2d::Zero()});
+			obs_px.push_back(point_px[size_t(i)]);
+		}
 		problem.tracks.push_back({begin, problem.obs.size()});
 		stats->tracks_3_views += list.size() >= 3;
 	}
-	std::vector<std::vector<cv::Point2d>> extra_px(static_cast<size_t>(n));
-	std::vector<std::vector<size_t>> extra_obs(static_cast<size_t>(n));
 	for (const Track &t : extra_tracks) {
 		if (t.cameras.size() < 2 || t.cameras.size() != t.pixels.size())
 			continue;
@@ -371,22 +354,28 @@ Status refine_extrinsics(const std::vector<PairMatches> &pairs, const std::vecto
 			continue;
 		const size_t begin = problem.obs.size();
 		for (size_t k = 0; k < t.cameras.size(); ++k) {
-			extra_px[size_t(t.cameras[k])].push_back(t.pixels[k]);
-			extra_obs[size_t(t.cameras[k])].push_back(problem.obs.size());
 			problem.obs.push_back({t.cameras[k], Eigen::Vector2d::Zero()});
+			obs_px.push_back(t.pixels[k]);
 		}
 		problem.tracks.push_back({begin, problem.obs.size()});
 		stats->extra_tracks++;
 		stats->tracks_3_views += t.cameras.size() >= 3;
 	}
+	// Undistorted once, per camera: the intrinsics do not change.
 	for (int c = 0; c < n; ++c) {
-		if (extra_px[size_t(c)].empty())
+		std::vector<cv::Point2d> in, out;
+		std::vector<size_t> idx;
+		for (size_t k = 0; k < problem.obs.size(); ++k)
+			if (problem.obs[k].camera == c) {
+				in.push_back(obs_px[k]);
+				idx.push_back(k);
+			}
+		if (in.empty())
 			continue;
 		const CameraModel &cam = (*cameras)[size_t(c)];
-		std::vector<cv::Point2d> out;
-		cv::undistortPoints(extra_px[size_t(c)], out, cam.K, cam.dist);
-		for (size_t k = 0; k < out.size(); ++k)
-			problem.obs[extra_obs[size_t(c)][k]].xy = Eigen::Vector2d(out[k].x, out[k].y);
+		cv::undistortPoints(in, out, cam.K, cam.dist);
+		for (size_t k = 0; k < idx.size(); ++k)
+			problem.obs[idx[k]].xy = Eigen::Vector2d(out[k].x, out[k].y);
 	}
 	stats->tracks = int(problem.tracks.size());
 	problem.camera_tracks.assign(size_t(n), {});
@@ -447,16 +436,14 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 	if (params.chain_cell_px <= 0)
 		return;
 	const int n = int(cameras.size());
-	auto project = [](const CameraModel &cam, const std::vector<cv::Point3f> &points, std::vector<cv::Point2f> *px,
+	// A cloud's points in a camera: pixels (project_points) and depths along its axis.
+	auto project = [](const CameraModel &cam, const std::vector<cv::Point3f> &points, std::vector<cv::Point2d> *px,
 			  std::vector<float> *depth) {
-		cv::Vec3d rvec;
-		cv::Rodrigues(cam.R, rvec);
-		px->clear();
-		if (!points.empty())
-			cv::projectPoints(points, rvec, cam.T, cam.K, cam.dist, *px);
-		depth->resize(points.size());
-		for (size_t i = 0; i < points.size(); ++i)
-			(*depth)[i] = float((cam.R * cv::Vec3d(points[i].x, points[i].y, points[i].z) + cam.T)[2]);
+		const std::vector<cv::Point3d> world(points.begin(), points.end());
+		*px = project_points(cam, world);
+		depth->resize(world.size());
+		for (size_t i = 0; i < world.size(); ++i)
+			(*depth)[i] = float((cam.R * cv::Vec3d(world[i]) + cam.T)[2]);
 	};
 	for (size_t p = 0; p + 1 < clouds.size(); ++p) {
 		const DenseCloud &A = clouds[p], &B = clouds[p + 1];
@@ -469,16 +456,16 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 		if (size.width <= 0 || size.height <= 0)
 			continue;
 		// B's points in the shared camera, bucketed by 4 px cells.
-		std::vector<cv::Point2f> bpx;
+		std::vector<cv::Point2d> bpx;
 		std::vector<float> bz;
 		project(cm, B.points, &bpx, &bz);
 		const int g = 4, gw = (size.width + g - 1) / g, gh = (size.height + g - 1) / g;
 		std::vector<int> start(size_t(gw * gh) + 1, 0), order(bpx.size());
-		auto cell_of = [&](const cv::Point2f &q) {
-			const int x = int(std::floor(q.x / float(g))), y = int(std::floor(q.y / float(g)));
+		auto cell_of = [&](const cv::Point2d &q) {
+			const int x = int(std::floor(q.x / g)), y = int(std::floor(q.y / g));
 			return x >= 0 && y >= 0 && x < gw && y < gh ? y * gw + x : -1;
 		};
-		for (const cv::Point2f &q : bpx) {
+		for (const cv::Point2d &q : bpx) {
 			const int c = cell_of(q);
 			if (c >= 0)
 				start[size_t(c) + 1]++;
@@ -494,13 +481,13 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 			}
 		}
 		// A's most confident point per chain cell of the shared camera.
-		std::vector<cv::Point2f> apx;
+		std::vector<cv::Point2d> apx;
 		std::vector<float> az;
 		project(cm, A.points, &apx, &az);
 		const int s = params.chain_cell_px, sw = (size.width + s - 1) / s, sh = (size.height + s - 1) / s;
 		std::vector<int> best(size_t(sw * sh), -1);
 		for (size_t i = 0; i < apx.size(); ++i) {
-			const int x = int(std::floor(apx[i].x / float(s))), y = int(std::floor(apx[i].y / float(s)));
+			const int x = int(std::floor(apx[i].x / s)), y = int(std::floor(apx[i].y / s));
 			if (x < 0 || y < 0 || x >= sw || y >= sh)
 				continue;
 			int &b = best[size_t(y * sw + x)];
@@ -509,17 +496,17 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 				b = int(i);
 		}
 		std::vector<int> kept;
-		std::vector<cv::Point2f> kept_px;
+		std::vector<cv::Point2d> kept_px;
 		std::vector<double> kept_z;
 		for (int i : best) {
 			if (i < 0)
 				continue;
-			const cv::Point2f u = apx[size_t(i)];
+			const cv::Point2d u = apx[size_t(i)];
 			// B's surface along u's ray: a plane z = a + b dx + c dy fitted to its points within 2 g.
 			Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
 			Eigen::Vector3d rhs = Eigen::Vector3d::Zero();
 			std::vector<std::tuple<double, double, double>> near;
-			const int cx = int(u.x / float(g)), cy = int(u.y / float(g));
+			const int cx = int(u.x / g), cy = int(u.y / g);
 			for (int y = cy - 2; y <= cy + 2; ++y)
 				for (int x = cx - 2; x <= cx + 2; ++x) {
 					if (x < 0 || y < 0 || x >= gw || y >= gh)
@@ -558,7 +545,7 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 		if (kept.empty())
 			continue;
 		// B's surface point on each kept pixel's ray, seen by camera p+2; A's point seen by camera p.
-		std::vector<cv::Point2f> rays;
+		std::vector<cv::Point2d> rays;
 		cv::undistortPoints(kept_px, rays, cm.K, cm.dist);
 		std::vector<cv::Point3d> on_b(kept.size()), on_a(kept.size());
 		for (size_t k = 0; k < kept.size(); ++k) {
@@ -573,7 +560,7 @@ void chain_dense_tracks(const std::vector<DenseCloud> &clouds, const std::vector
 		std::vector<Track> junction;
 		for (size_t k = 0; k < kept.size(); ++k)
 			if (inside(uc[k], cc.size) && inside(ua[k], ca.size))
-				junction.push_back({{A.cam_a, A.cam_b, B.cam_b}, {ua[k], cv::Point2d(kept_px[k]), uc[k]}});
+				junction.push_back({{A.cam_a, A.cam_b, B.cam_b}, {ua[k], kept_px[k], uc[k]}});
 		// A handful of tracks would let one mismatch set the pairs' relative depth.
 		if (int(junction.size()) >= params.chain_min_tracks)
 			tracks->insert(tracks->end(), junction.begin(), junction.end());

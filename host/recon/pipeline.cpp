@@ -285,16 +285,17 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		if (params.bundle.enabled && params.bundle.chain_cell_px > 0) {
 			std::vector<Track> tracks;
 			chain_dense_tracks(clouds, cams, params.bundle, &tracks);
-			std::vector<CameraModel> refined = set.calibration.cameras;
-			BundleStats stats;
-			s = refine_extrinsics(matches, tracks, params.bundle, &refined, &stats);
-			if (!s.ok())
-				return s;
-			if (stats.applied) {
-				retriangulate_clouds(cams, refined, &clouds);
-				cams = refined;
+			// Without chained tracks the refinement would be stage 6a's again, to the same cameras.
+			if (!tracks.empty()) {
+				std::vector<CameraModel> refined = set.calibration.cameras;
+				s = refine_extrinsics(matches, tracks, params.bundle, &refined, &report.bundle_dense);
+				if (!s.ok())
+					return s;
+				if (report.bundle_dense.applied) {
+					retriangulate_clouds(cams, refined, &clouds);
+					cams = refined;
+				}
 			}
-			report.bundle_dense = stats;
 		}
 		timer.lap("bundle_dense");
 		{
