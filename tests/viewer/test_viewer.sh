@@ -71,7 +71,7 @@ grep -q '"P-TEST"' "$tmp/body" 2>/dev/null || true
 get /api/scans >/dev/null; grep -q '"/share/P-TEST/scan.glb"' "$tmp/body" && echo "ok: the listing names P-TEST/scan.glb" ||
 	{ echo "FAIL: listing"; cat "$tmp/body"; fail=1; }
 
-# Two known vertices: front-facing, unoccluded, on either cheek.
+# Two known vertices: front-facing, unoccluded, away from holes, on either cheek.
 "$bin" convert "$share/P-TEST/scan.glb" "$tmp/scan.ply" >/dev/null 2>&1
 pts=$("$py" - "$tmp/scan.ply" <<'PY'
 import sys
@@ -82,6 +82,13 @@ v, n = m.vertices, m.vertex_normals
 lo, hi = v.min(0), v.max(0)
 c, size = (lo + hi) / 2, hi - lo
 facing = np.abs(n[:, 2]) > 0.7
+# Not on or next to a hole's rim: a click through a rim vertex can pass beside the surface.
+edges, count = np.unique(np.sort(m.edges, axis=1), axis=0, return_counts=True)
+rim = np.zeros(len(v), bool)
+rim[edges[count == 1].ravel()] = True
+for _ in range(2):
+    rim[m.edges[rim[m.edges[:, 0]], 1]] = True
+facing &= ~rim
 def visible(i):  # nothing in front of it within 3 mm across
     d = np.hypot(v[:, 0] - v[i, 0], v[:, 1] - v[i, 1])
     return not np.any((d < 3) & (v[:, 2] > v[i, 2] + 0.5))
