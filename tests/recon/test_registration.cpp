@@ -8,6 +8,7 @@
 #include "synthetic_rig.hpp"
 
 #include <cstdio>
+#include <limits>
 
 using namespace facescan::recon;
 
@@ -140,6 +141,50 @@ static void test_dense_overlap_distance(void **)
 			 -ENODATA);
 }
 
+// The overlap distance is exact: the same mean as a brute-force nearest point search, on clouds
+// that straddle the coordinate axes (cells on both sides of 0) and carry a point at infinity.
+static void test_dense_overlap_distance_is_exact(void **)
+{
+	cv::RNG rng(11);
+	std::vector<cv::Point3f> fixed, moving;
+	for (int i = 0; i < 1500; ++i) {
+		fixed.emplace_back(float(rng.uniform(-30.0, 30.0)), float(rng.uniform(-30.0, 30.0)),
+				   float(rng.uniform(-3.0, 3.0)));
+		moving.emplace_back(float(rng.uniform(-50.0, 10.0)), float(rng.uniform(-30.0, 30.0)),
+				    float(rng.uniform(-6.0, 6.0)));
+	}
+	fixed.emplace_back(std::numeric_limits<float>::infinity(), 0.f, 0.f);
+	RegistrationParams params;
+	params.dense_stride = 3;
+	const cv::Matx33d R = cv::Matx33d::eye();
+	const cv::Vec3d T(1.5, -0.5, 0.7);
+	double before = 0, after = 0;
+	assert_true(overlap_distance(moving, fixed, R, T, params, &before, &after).ok());
+	auto nearest = [&](const cv::Vec3d &q) {
+		double best = std::numeric_limits<double>::infinity();
+		for (const cv::Point3f &f : fixed)
+			if (std::isfinite(f.x))
+				best = std::min(best, cv::norm(cv::Vec3d(f.x, f.y, f.z) - q));
+		return best;
+	};
+	double sum0 = 0, sum1 = 0;
+	int count = 0;
+	for (size_t i = 0; i < moving.size(); i += size_t(params.dense_stride)) {
+		const cv::Vec3d q(moving[i].x, moving[i].y, moving[i].z);
+		const double a = nearest(q), b = nearest(R * q + T);
+		if (a > params.dense_reach_mm && b > params.dense_reach_mm)
+			continue;
+		sum0 += std::min(a, params.dense_cap_mm);
+		sum1 += std::min(b, params.dense_cap_mm);
+		count++;
+	}
+	assert_true(count > 100);
+	std::printf("overlap distance: %.4f / %.4f mm, brute force %.4f / %.4f mm over %d points\n", before, after,
+		    sum0 / count, sum1 / count, count);
+	assert_true(std::fabs(before - sum0 / count) < 1e-4);
+	assert_true(std::fabs(after - sum1 / count) < 1e-4);
+}
+
 static void test_dense_check_keeps_good_fits_only(void **)
 {
 	const std::vector<cv::Point3f> left = sphere_patch(-40, 10), middle = sphere_patch(-15, 15),
@@ -194,6 +239,7 @@ int main(void)
 		cmocka_unit_test(test_recovers_known_motion),
 		cmocka_unit_test(test_exact_calibration_left_alone),
 		cmocka_unit_test(test_dense_overlap_distance),
+		cmocka_unit_test(test_dense_overlap_distance_is_exact),
 		cmocka_unit_test(test_dense_check_keeps_good_fits_only),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
