@@ -178,17 +178,25 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 					if (radius[c] <= 0)
 						continue;
 					win.clear();
+					size_t near = 0; // neighbours (and itself) within the limit of its radius
+					const float r = radius[c], dev = float(params.max_median_dev_mm);
 					for (int dy = -R; dy <= R; ++dy)
 						for (int dx = -R; dx <= R; ++dx) {
 							const int xx = x + dx, yy = y + dy;
 							if (xx < 0 || yy < 0 || xx >= W || yy >= H)
 								continue;
 							const float q = radius[size_t(yy) * size_t(W) + size_t(xx)];
-							if (q > 0)
+							if (q > 0) {
 								win.push_back(q);
+								near += std::fabs(q - r) <= dev;
+							}
 						}
+					// When more than half the window lies within the limit of r, so does its
+					// median (win[size / 2] sorted): no selection needed — most cells.
+					if (near > win.size() / 2)
+						continue;
 					std::nth_element(win.begin(), win.begin() + long(win.size() / 2), win.end());
-					if (std::fabs(win[win.size() / 2] - radius[c]) > float(params.max_median_dev_mm)) {
+					if (std::fabs(win[win.size() / 2] - r) > dev) {
 						next[c] = 0;
 						row_outliers[size_t(y)]++;
 					}

@@ -457,6 +457,59 @@ void fusion_trims_the_outline_not_the_holes(void **)
 	assert_int_equal(near1, near0);
 }
 
+// A sphere cap with spikes (single matches 1.6 mm out, stronger than their neighbours, so each
+// takes its cells; near enough to stay joined to them by triangles) and a 3 mm step across its
+// middle: the median test drops the spikes' cells and keeps both sides of the step, whose cells
+// mostly agree with their own side.
+void fusion_drops_spikes_keeps_steps(void **)
+{
+	const std::vector<CameraModel> cams = synth::ring();
+	const double R = 90, deg = CV_PI / 180;
+	std::vector<DenseCloud> clouds(1);
+	int spikes = 0;
+	for (double el = -15; el <= 15; el += 0.1)
+		for (double az = -15; az <= 15; az += 0.1) {
+			const bool spike = std::fabs(std::fmod(el + 15, 6.0) - 3) < 0.05 &&
+					   std::fabs(std::fmod(az + 15, 6.0) - 3) < 0.05 && std::fabs(az) > 2;
+			const double r = R + (az > 0 ? 3 : 0) + (spike ? 1.6 : 0);
+			spikes += spike;
+			const cv::Vec3d n(std::cos(el * deg) * std::sin(az * deg), std::sin(el * deg),
+					  std::cos(el * deg) * std::cos(az * deg));
+			clouds[0].points.emplace_back(cv::Point3d(n * r));
+			clouds[0].confidence.push_back(spike ? 1.f : 0.5f);
+			clouds[0].border_mm.push_back(float(std::min(15 - std::fabs(az), 15 - std::fabs(el)) * deg * R));
+		}
+	auto fuse = [&](int median_radius, int *ret_off, int *ret_low, int *ret_high, SurfaceStats *ret_stats) {
+		SurfaceParams params;
+		params.median_radius = median_radius;
+		Mesh mesh;
+		assert_true(fuse_dense(clouds, cams, params, &mesh, ret_stats).ok());
+		*ret_off = *ret_low = *ret_high = 0;
+		for (const cv::Point3f &p : mesh.positions) {
+			const double az = std::atan2(p.x, p.z) / deg, r = cv::norm(p);
+			const double expected = R + (az > 0 ? 3 : 0);
+			// Away from the step, where a cell may average both sides.
+			if (std::fabs(az) > 0.5)
+				*ret_off += std::fabs(r - expected) > 1;
+			*ret_low += az < -0.5;
+			*ret_high += az > 0.5;
+		}
+	};
+	int off0 = 0, low0 = 0, high0 = 0, off1 = 0, low1 = 0, high1 = 0;
+	SurfaceStats s0, s1;
+	fuse(0, &off0, &low0, &high0, &s0);
+	fuse(3, &off1, &low1, &high1, &s1);
+	std::printf("median test: %d spikes, %d vertices off without it, %d with it (%d cells dropped); "
+		    "sides %d / %d -> %d / %d vertices\n",
+		    spikes, off0, off1, s1.outliers, low0, high0, low1, high1);
+	assert_true(spikes >= 10);
+	assert_true(2 * off0 >= spikes); // without the test, most spikes leave a vertex off the surface
+	assert_int_equal(off1, 0);
+	assert_true(s1.outliers >= spikes && s1.outliers < 12 * spikes);
+	// The step's two sides stay (all but about a cell column at the step and the spikes' cells).
+	assert_true(low1 > 0.97 * low0 && high1 > 0.97 * high0);
+}
+
 } // namespace
 
 // Flat squares: their interiors (no texture) carry a wrong disparity, as SGBM's smoothness leaves
@@ -870,6 +923,7 @@ int main(void)
 		cmocka_unit_test(steep_test_keeps_stretched_surfaces),
 		cmocka_unit_test(fusion_makes_one_sheet),
 		cmocka_unit_test(fusion_trims_the_outline_not_the_holes),
+		cmocka_unit_test(fusion_drops_spikes_keeps_steps),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
