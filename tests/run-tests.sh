@@ -10,7 +10,12 @@ pass=0 fail=0 skip=0 failed=""
 # Each test's output is kept, so the end of a failed one is printed again last: a CI log that
 # shows only its tail still says why.
 logs=$(mktemp -d "${TMPDIR:-/tmp}/facescan-test-logs-XXXXXX") || exit 1
-trap 'rm -rf "$logs"' EXIT
+# What several tests render alike is made once per run and kept here for the others
+# (tests/simulated_scan.hpp): a directory made afresh for this run and removed after it.
+mkdir -p "${FACESCAN_BUILD:-build}/test-cache" &&
+	FACESCAN_TEST_CACHE=$(mktemp -d "$(cd "${FACESCAN_BUILD:-build}/test-cache" && pwd)/run-XXXXXX") || exit 1
+export FACESCAN_TEST_CACHE
+trap 'rm -rf "$logs" "$FACESCAN_TEST_CACHE"' EXIT
 tests=$(find "$dir" -type f -name 'test_*' -perm -u+x 2>/dev/null | sort)
 scripts=$(ls tests/*/test_*.sh 2>/dev/null | sort)
 for t in $tests $scripts; do
