@@ -5,6 +5,7 @@
 #include "eval/eval.hpp"
 #include "mesh_io/mesh_io.hpp"
 #include "sim/sim.hpp"
+#include "simulated_scan.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -53,21 +54,25 @@ static void test_frames_without_calibration(void **)
 // A simulated scan left on disk as the booth's simulated cameras leave it: the daemon scores its
 // mesh as `facescan evaluate` and the benchmark do — truth points seen by two cameras and lit by
 // a projector of the rig that rendered it — not over points no pattern reached.
+// The scan is the default one (default scene, canonical head, seed 1, pattern frames only), as
+// recon/test_e2e renders it: taken from this run's cache when that test has left it there
+// (tests/simulated_scan.hpp), else rendered and written here.
 static void test_accuracy_of_a_simulated_set(void **)
 {
-	char dir[] = "/tmp/facescan-pipeline-XXXXXX";
-	assert_non_null(mkdtemp(dir));
+	char tmp[] = "/tmp/facescan-pipeline-XXXXXX";
+	assert_non_null(mkdtemp(tmp));
 	const facescan::sim::Rig rig = facescan::sim::default_rig();
-	facescan::sim::Scene scene;
-	assert_true(facescan::sim::scene_by_name("default", &scene).ok());
-	facescan::Pattern pattern;
-	assert_true(facescan::default_pattern(facescan::SlideSpec(), &pattern).ok());
+	std::string dir;
+	if (facescan::testing::cached_default_scan(&dir)) {
+		std::printf("the default scan, as recon/test_e2e rendered it in this run: %s\n", dir.c_str());
+	} else {
+		facescan::testing::SimulatedScan scan;
+		assert_true(facescan::testing::simulate_default_scan(&scan).ok());
+		dir = std::string(tmp) + "/set";
+		assert_true(facescan::sim::write_simulated_set(dir, scan.set, scan.sim_truth).ok());
+	}
 	facescan::CaptureSet set;
-	facescan::sim::SimTruth truth;
-	facescan::sim::SimOptions options;
-	options.texture_frames = false;
-	assert_true(facescan::sim::simulate(rig, scene, pattern, 1, &set, &truth, options).ok());
-	assert_true(facescan::sim::write_simulated_set(dir, set, truth).ok());
+	assert_true(facescan::read_calibration(dir + "/calibration.yaml", &set.calibration).ok());
 
 	PipelineReconstructor r("", "");
 	Capture c;
@@ -96,7 +101,7 @@ static void test_accuracy_of_a_simulated_set(void **)
 		stages.push_back(st.first);
 	for (const char *want : {"read", "detect", "encode", "accuracy"})
 		assert_true(std::find(stages.begin(), stages.end(), want) != stages.end());
-	std::system((std::string("rm -rf ") + dir).c_str());
+	std::system((std::string("rm -rf ") + tmp).c_str());
 }
 
 int main()

@@ -46,7 +46,8 @@ static void test_default_scene(void **)
 {
 	const sim::Rig rig = sim::default_rig();
 	testing::SimulatedScan scan;
-	assert_true(testing::simulate_scan(rig, sim::HeadShape(), 1, &scan).ok()); // the canonical head
+	assert_true(testing::simulate_default_scan(&scan).ok()); // the canonical head, seed 1
+	testing::cache_default_scan(scan); // daemon/test_pipeline_recon scores the same scan
 	const CaptureSet &set = scan.set;
 
 	const std::vector<CameraModel> projectors = sim::projector_models(rig);
