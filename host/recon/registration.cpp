@@ -192,6 +192,12 @@ Status overlap_distance(const std::vector<cv::Point3f> &moving, const std::vecto
 	// cell and the 26 around it: exact, where a k-d tree over the whole cloud cost 0.3-0.6 s
 	// per pair (its build and approximate search over 100-200k points).
 	const double cell = params.dense_reach_mm;
+	// Points farther than a kilometre (and NaN ones) are no surface: they are left out, which
+	// also keeps a 4 mm cell's index within the 21 bits per axis its key packs. (With a smaller
+	// reach two cells may share a key: their points are then both measured, never missed.)
+	auto on_grid = [](const cv::Vec3d &p) {
+		return std::fabs(p[0]) < 1e6 && std::fabs(p[1]) < 1e6 && std::fabs(p[2]) < 1e6;
+	};
 	auto cell_of = [cell](const cv::Vec3d &p) {
 		return cv::Vec3i(int(std::floor(p[0] / cell)), int(std::floor(p[1] / cell)), int(std::floor(p[2] / cell)));
 	};
@@ -201,10 +207,9 @@ Status overlap_distance(const std::vector<cv::Point3f> &moving, const std::vecto
 	std::vector<std::pair<int64_t, uint32_t>> keyed;
 	keyed.reserve(fixed.size());
 	for (size_t i = 0; i < fixed.size(); ++i) {
-		const cv::Point3f &p = fixed[i];
-		if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::fabs(p.x) < 1e6f &&
-		    std::fabs(p.y) < 1e6f && std::fabs(p.z) < 1e6f)
-			keyed.emplace_back(key_of(cell_of(cv::Vec3d(p.x, p.y, p.z))), uint32_t(i));
+		const cv::Vec3d p(fixed[i].x, fixed[i].y, fixed[i].z);
+		if (on_grid(p))
+			keyed.emplace_back(key_of(cell_of(p)), uint32_t(i));
 	}
 	std::sort(keyed.begin(), keyed.end());
 	std::unordered_map<int64_t, std::pair<uint32_t, uint32_t>> cells; // key -> [begin, end) in keyed
@@ -219,7 +224,7 @@ Status overlap_distance(const std::vector<cv::Point3f> &moving, const std::vecto
 	const float reach2 = float(params.dense_reach_mm * params.dense_reach_mm);
 	auto nearest2 = [&](const cv::Vec3d &q) {
 		float best = std::numeric_limits<float>::infinity();
-		if (!(std::fabs(q[0]) < 1e6 && std::fabs(q[1]) < 1e6 && std::fabs(q[2]) < 1e6))
+		if (!on_grid(q))
 			return best;
 		const cv::Vec3i c = cell_of(q);
 		const cv::Point3f qf{float(q[0]), float(q[1]), float(q[2])};

@@ -63,7 +63,9 @@ Status register_models(std::vector<PartialModel> *models, const RegistrationPara
 /// The overlap distance of two dense clouds (mm): the mean distance from every `stride`-th point
 /// of `moving`, moved by R, T, to its nearest point of `fixed`, each capped at `cap_mm`, over the
 /// points that lie within `reach_mm` of `fixed` before or after the move (the overlap either
-/// way). `before` receives the same measure without the move. -ENODATA when nothing overlaps.
+/// way). `before` receives the same measure without the move; points farther than 1 km from the
+/// origin, or not finite, are left out. -ENODATA when nothing overlaps, -EINVAL when `reach_mm`
+/// is not positive.
 Status overlap_distance(const std::vector<cv::Point3f> &moving, const std::vector<cv::Point3f> &fixed,
 			const cv::Matx33d &R, const cv::Vec3d &T, const RegistrationParams &params,
 			double *ret_before_mm, double *ret_after_mm);
