@@ -62,6 +62,7 @@ recon/test_image_stages
 tests=$(find "$dir" -type f -name 'test_*' -perm -u+x 2>/dev/null | sort)
 scripts=$(ls tests/*/test_*.sh 2>/dev/null | sort)
 name_of() { printf '%s' "${1#"$dir"/}"; }
+log_of() { printf '%s/%s.log' "$logs" "$(printf '%s' "$1" | tr '/' '_')"; } # by test name
 listed() { case "$2" in *"
 $1
 "*) return 0 ;; esac; return 1; }
@@ -76,19 +77,19 @@ done
 
 # Runs test $1 (its log, exit code and seconds into $logs), then prints it whole.
 run_one() {
-	local t=$1 name id start rc secs
+	local t=$1 name log start rc secs
 	name=$(name_of "$t")
-	id=$(printf '%s' "$name" | tr '/' '_')
+	log=$(log_of "$name")
 	start=$(date +%s)
 	{ flock 9; printf -- '--- %s: started\n' "$name"; } 9>>"$logs/print.lock"
 	# To a file, not through a pipe: a helper a test leaves running must not hold the run open.
-	"$t" >"$logs/$id.log" 2>&1 </dev/null
+	"$t" >"$log" 2>&1 </dev/null
 	rc=$?
 	secs=$(($(date +%s) - start))
 	{
 		flock 9
 		printf '=== %s\n' "$name"
-		cat "$logs/$id.log"
+		cat "$log"
 		case $rc in
 		0) printf '=== %s: PASS (%ss)\n' "$name" "$secs" ;;
 		77) printf '=== %s: SKIP (needs hardware, see above)\n' "$name" ;;
@@ -125,7 +126,7 @@ printf '\n%d passed, %d skipped, %d failed (%d tests at a time, %ss)\n' "$pass" 
 k=1
 for name in $failed; do
 	printf '\n--- the last 40 lines of failed test %d of %d (%s):\n' "$k" "$fail" "$name"
-	tail -n 40 "$logs/$(printf '%s' "$name" | tr '/' '_').log"
+	tail -n 40 "$(log_of "$name")"
 	k=$((k + 1))
 done
 [ "$fail" -eq 0 ] || { printf '\n%d passed, %d skipped, %d failed\nfailed:%s\n' "$pass" "$skip" "$fail" "$failed"; exit 1; }
