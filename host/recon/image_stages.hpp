@@ -294,10 +294,20 @@ struct PairCheckParams {
 
 /// Stage 4 (code): matching by cell id.
 struct CodeMatchParams {
-	double max_epipolar_px = 2.0;	// symmetric distance to the epipolar line, pixels
+	/// A square pair is matched when its centroids are this close to their epipolar lines
+	/// (symmetric distance, pixels), or when all four corners are within the check's
+	/// max_corner_epipolar_px: a corner is the image of one surface point, the area centroid of
+	/// a square seen obliquely is not, and on a pair converging by ~45 degrees a right match's
+	/// centroid lies 2-6 px off while its corners lie within 0.5 px.
+	double max_epipolar_px = 2.0;
 	/// Two connected parts of the decoded grids (one in each camera) show the same copy of the
 	/// slide when at least this fraction of their shared cells, and this many (or all when
-	/// fewer), pass the epipolar and depth checks.
+	/// fewer), pass the depth check and lie within copy_epipolar_px (or pass on their corners).
+	/// The vote tells copies apart, which lie on different parts of the face, tens of pixels off
+	/// each other's epipolar lines; at max_epipolar_px it also refused the right copy where the
+	/// centroids of oblique squares drift (random booths 3800 pair 0-1, 10 of 17 cells within
+	/// 2 px, 14 within 4; 3803 pair 1-2, 6 and 10 of 11: no code match in either pair).
+	double copy_epipolar_px = 4.0;
 	double min_part_agreement = 0.6;
 	int min_part_support = 3;
 };

@@ -45,6 +45,17 @@ double epipolar(const PairGeometry &g, const cv::Point2d &na, const cv::Point2d 
 	return 0.5 * (da * g.fa + db * g.fb);
 }
 
+// True when every corner of square i of camera a lies within max_px of the epipolar line of the
+// same corner of square j of camera b (both squares must have corners). A corner is the image of
+// one surface point; the area centroid of a square seen obliquely is not.
+bool corners_on_lines(const PairGeometry &g, size_t i, size_t j, double max_px)
+{
+	for (size_t k = 1; k <= 4; k++)
+		if (epipolar(g, g.na[i * kFeatureCount + k], g.nb[j * kFeatureCount + k]) > max_px)
+			return false;
+	return true;
+}
+
 // The midpoint of the two rays in camera a's frame, mm; false when behind either camera.
 bool ray_point(const PairGeometry &g, const cv::Point2d &na, const cv::Point2d &nb, cv::Vec3d *ret)
 {
@@ -150,11 +161,8 @@ public:
 	{
 		const Square &sa = a_.squares[i], &sb = b_.squares[size_t(j)];
 		const bool corners = check_.corners && sa.has_corners && sb.has_corners;
-		for (int k = 0; corners && k < 4; k++) {
-			size_t fa = i * kFeatureCount + size_t(k) + 1, fb = size_t(j) * kFeatureCount + size_t(k) + 1;
-			if (epipolar(g_, g_.na[fa], g_.nb[fb]) > check_.max_corner_epipolar_px)
-				return false;
-		}
+		if (corners && !corners_on_lines(g_, i, size_t(j), check_.max_corner_epipolar_px))
+			return false;
 		PointMatch pm;
 		pm.square_a = int(i);
 		pm.square_b = j;
@@ -558,10 +566,15 @@ Status match_codes(const CameraDetections &a, const CameraDetections &b, const P
 	const int cols = pattern.matrix.cols();
 	std::vector<int> comp_a = grid_parts(a, cols), comp_b = grid_parts(b, cols);
 
-	// Every same-cell candidate, with its geometric verdict, tallied per pair of grid parts.
+	// Every same-cell candidate, with its geometric verdicts (matched, and the copy vote's),
+	// tallied per pair of grid parts.
 	struct Cand {
 		int i, j;
 		bool ok;
+	};
+	auto corners_agree = [&](size_t i, size_t j) {
+		return check.corners && a.squares[i].has_corners && b.squares[j].has_corners &&
+		       corners_on_lines(g, i, j, check.max_corner_epipolar_px);
 	};
 	std::vector<Cand> cands;
 	std::map<std::pair<int, int>, std::pair<int, int>> tally; // (part a, part b) → (ok, total)
@@ -575,11 +588,12 @@ Status match_codes(const CameraDetections &a, const CameraDetections &b, const P
 		for (int j : it->second) {
 			const cv::Point2d &pa = na[i * kFeatureCount], &pb = nb[size_t(j) * kFeatureCount];
 			double z = 0;
-			bool ok = epipolar(g, pa, pb) <= params.max_epipolar_px && ray_depth(g, pa, pb, &z) &&
-				  z >= check.min_depth_mm && z <= check.max_depth_mm;
+			const bool depth_ok = ray_depth(g, pa, pb, &z) && z >= check.min_depth_mm && z <= check.max_depth_mm;
+			const double e = epipolar(g, pa, pb);
+			const bool ok = depth_ok && (e <= params.max_epipolar_px || corners_agree(i, size_t(j)));
 			cands.push_back({int(i), j, ok});
 			auto &t = tally[{comp_a[i], comp_b[size_t(j)]}];
-			t.first += ok;
+			t.first += ok || (depth_ok && e <= params.copy_epipolar_px);
 			t.second++;
 		}
 	}
