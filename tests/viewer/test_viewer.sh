@@ -22,13 +22,17 @@ trap '[ -n "$vpid" ] && kill "$vpid" 2>/dev/null; rm -rf "$tmp"' EXIT
 fail=0
 t_start=$(date +%s)
 
-# The scan: simulated capture (half resolution) → facescan recon, cached.
+# The scan: simulated capture (half resolution) → facescan recon, cached, and made again when
+# the binary under test changed (its checksum in the cache's stamp): a scan made by an older
+# recon once hid a failure that only a clean clone showed.
 cache=$build/test-cache/viewer-scan
-if [ ! -s "$cache/scan.drc" ] || [ ! -s "$cache/scan.png" ]; then
+stamp=$(cksum <"$bin" | cut -d' ' -f1)
+if [ ! -s "$cache/scan.drc" ] || [ ! -s "$cache/scan.png" ] || [ "$(cat "$cache/stamp" 2>/dev/null)" != "$stamp" ]; then
 	rm -rf "$cache.tmp" && mkdir -p "$cache.tmp"
 	"$bin" simulate --scale 0.5 --out "$cache.tmp/set" >"$tmp/log" 2>&1 &&
 		"$bin" recon "$cache.tmp/set" -o "$cache.tmp/scan.drc" >>"$tmp/log" 2>&1 ||
 		{ echo "FAIL: could not make the scan"; cat "$tmp/log"; exit 1; }
+	echo "$stamp" >"$cache.tmp/stamp"
 	# recon writes the texture beside the mesh as <stem>.png
 	rm -rf "$cache.tmp/set" "$cache" && mv "$cache.tmp" "$cache"
 	echo "ok: made the scan in $(( $(date +%s) - t_start )) s (cached in $cache)"
