@@ -47,8 +47,8 @@ inline Status simulate_scan(const sim::Rig &rig, const sim::HeadShape &shape, ui
 
 // ---- the default scan, rendered once per test run ------------------------------------------
 // recon/test_e2e and daemon/test_pipeline_recon score the same scan: the default scene with the
-// canonical head through the default rig, noise seed 1, pattern frames only (~25 s of rendering
-// under ASan). The first to render it leaves it as a simulated set (sim::write_simulated_set) in
+// canonical head through the default rig, noise seed 1, pattern frames only (~17 CPU-s of rendering
+// in the ASan build). The first to render it leaves it as a simulated set (sim::write_simulated_set) in
 // $FACESCAN_TEST_CACHE/default-scan; tests/run-tests.sh makes that directory afresh for every
 // run and removes it after, so a set there is never older than the binaries under test. Without
 // FACESCAN_TEST_CACHE (a test run by hand) every test renders its own.
