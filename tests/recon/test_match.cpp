@@ -680,7 +680,6 @@ static void grow_matches_a_square_without_code(void **)
 
 // 4c: a square cut out of both grids and without a code word (neither code nor growth reach it)
 // is matched when its partner lies on its epipolar line within its matched neighbours' depth
-
 // range; moved 30 mm behind the face along that line (depth range ± 8 mm) it is not.
 static void guide_matches_within_the_neighbours_depth(void **)
 {

@@ -1,6 +1,6 @@
 #!/bin/sh
 # The web viewer in a real browser, on a real scan (the simulated booth reconstructed by
-# host/recon; made once and cached under build/test-cache/). `facescan view` serves the share on
+# host/recon, made by the binaries under test). `facescan view` serves the share on
 # localhost; headless Chromium (Debian's chromium, driven by puppeteer-core from npm) opens the
 # scan, waits until it is drawn and screenshots it. The face must be where the project's ray
 # caster puts it from the same viewpoint (silhouette IoU >= 0.9), and a measurement clicked
@@ -22,24 +22,15 @@ trap '[ -n "$vpid" ] && kill "$vpid" 2>/dev/null; rm -rf "$tmp"' EXIT
 fail=0
 t_start=$(date +%s)
 
-# The scan: simulated capture (half resolution) → facescan recon, cached, and made again when
-# the binary under test changed (its checksum in the cache's stamp): a scan made by an older
-# recon once hid a failure that only a clean clone showed.
-cache=$build/test-cache/viewer-scan
-stamp=$(cksum <"$bin" | cut -d' ' -f1)
-if [ ! -s "$cache/scan.drc" ] || [ ! -s "$cache/scan.png" ] || [ "$(cat "$cache/stamp" 2>/dev/null)" != "$stamp" ]; then
-	rm -rf "$cache.tmp" && mkdir -p "$cache.tmp"
-	"$bin" simulate --scale 0.5 --out "$cache.tmp/set" >"$tmp/log" 2>&1 &&
-		"$bin" recon "$cache.tmp/set" -o "$cache.tmp/scan.drc" >>"$tmp/log" 2>&1 ||
-		{ echo "FAIL: could not make the scan"; cat "$tmp/log"; exit 1; }
-	echo "$stamp" >"$cache.tmp/stamp"
-	# recon writes the texture beside the mesh as <stem>.png
-	rm -rf "$cache.tmp/set" "$cache" && mv "$cache.tmp" "$cache"
-	echo "ok: made the scan in $(( $(date +%s) - t_start )) s (cached in $cache)"
-fi
+# The scan: simulated capture (half resolution) → facescan recon, made afresh by the binary under
+# test (a scan kept from an older recon once hid a failure that only a clean clone showed).
+"$bin" simulate --scale 0.5 --out "$tmp/set" >"$tmp/log" 2>&1 &&
+	"$bin" recon "$tmp/set" -o "$tmp/scan.drc" >>"$tmp/log" 2>&1 ||
+	{ echo "FAIL: could not make the scan"; cat "$tmp/log"; exit 1; }
+echo "ok: made the scan in $(( $(date +%s) - t_start )) s"
 share=$tmp/share
 mkdir -p "$share/P-TEST" "$tmp/outside"
-"$bin" convert "$cache/scan.drc" "$share/P-TEST/scan.glb" >"$tmp/log" 2>&1 || { echo "FAIL: convert"; cat "$tmp/log"; exit 1; }
+"$bin" convert "$tmp/scan.drc" "$share/P-TEST/scan.glb" >"$tmp/log" 2>&1 || { echo "FAIL: convert"; cat "$tmp/log"; exit 1; }
 echo "ok: $(cat "$tmp/log")"
 echo "secret-outside-the-share" >"$tmp/outside/secret.json"
 ln -s "$tmp/outside/secret.json" "$share/P-TEST/link.json"
