@@ -207,6 +207,81 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		radius.swap(next);
 	}
 
+	// Plane fit: each radius becomes the value, at its own direction, of the plane r(u, v) fitted
+	// (weighted least squares) to the agreeing radii of its window. A slanted surface and a
+	// one-sided window at the outline or at a hole keep their place exactly, which the 3-D mean
+	// above does not (more passes of it pull the outline in); another sheet beyond `agree_mm`
+	// takes no part. The vertex moves along its ray from the sphere's centre, so the outline
+	// stays where the pairs put it.
+	const int fit_cells =
+		params.plane_fit_mm > 0 ? std::max(1, int(std::lround(params.plane_fit_mm / stats.spacing_mm))) : 0;
+	if (fit_cells > 0) {
+		// Each vertex's direction in grid units, from its position (not its cell's centre).
+		std::vector<cv::Point2f> uv(n);
+		for (size_t c = 0; c < n; ++c) {
+			if (radius[c] <= 0)
+				continue;
+			const cv::Vec3d d = cv::Vec3d(cv::Point3d(pos[c]) - vf.centre);
+			const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
+			uv[c] = cv::Point2f(float((std::atan2(x, z) - double(umin)) / step) + 1,
+					    float((std::atan2(y, std::hypot(x, z)) - double(vmin)) / step) + 1);
+		}
+		const int R = fit_cells;
+		std::vector<float> fitted = radius;
+		// Rows are independent (each reads `radius`, writes its own cells of `fitted`).
+		cv::parallel_for_(cv::Range(0, H), [&](const cv::Range &rows) {
+			for (int y = rows.start; y < rows.end; ++y)
+				for (int x = 0; x < W; ++x) {
+					const size_t c = size_t(y) * size_t(W) + size_t(x);
+					if (radius[c] <= 0)
+						continue;
+					// Normal equations of r - r_c = a + b du + c dv (the 6 sums of the symmetric
+					// matrix and the 3 of the right-hand side), relative to the cell.
+					const float rc = radius[c], uc = uv[c].x, vc = uv[c].y;
+					// Single precision is enough (offsets of a few cells, radii within agree_mm of
+					// each other); a cell that does not agree adds zeros rather than a branch.
+					float s1 = 0, su = 0, sv = 0, suu = 0, suv = 0, svv = 0, sr = 0, sur = 0, svr = 0;
+					int used = 0;
+					for (int yy = std::max(0, y - R); yy <= std::min(H - 1, y + R); ++yy) {
+						const size_t row = size_t(yy) * size_t(W);
+						for (int xx = std::max(0, x - R); xx <= std::min(W - 1, x + R); ++xx) {
+							const size_t q = row + size_t(xx);
+							const float dr = radius[q] - rc;
+							const bool agrees = radius[q] > 0 && std::fabs(dr) <= agree;
+							const float w = agrees ? sum_w[q] : 0.f, du = uv[q].x - uc, dv = uv[q].y - vc;
+							const float wu = w * du, wv = w * dv;
+							s1 += w;
+							su += wu;
+							sv += wv;
+							suu += wu * du;
+							suv += wu * dv;
+							svv += wv * dv;
+							sr += w * dr;
+							sur += wu * dr;
+							svr += wv * dr;
+							used += agrees;
+						}
+					}
+					// Only the plane's value at the cell is wanted: Cramer's rule for a. A window
+					// whose cells lie on one line (a thin strip) has no plane: left as it is.
+					const double a00 = s1, a01 = su, a02 = sv, a11 = suu, a12 = suv, a22 = svv;
+					const double det = a00 * (a11 * a22 - a12 * a12) - a01 * (a01 * a22 - a12 * a02) +
+							   a02 * (a01 * a12 - a11 * a02);
+					if (used < 6 || !(det > 1e-6 * a00 * a11 * a22))
+						continue;
+					const double det_a = double(sr) * (a11 * a22 - a12 * a12) -
+							     a01 * (double(sur) * a22 - a12 * double(svr)) +
+							     a02 * (double(sur) * a12 - a11 * double(svr));
+					fitted[c] = rc + float(det_a / det);
+				}
+		});
+		for (size_t c = 0; c < n; ++c)
+			if (radius[c] > 0 && fitted[c] > 0) {
+				pos[c] = centre + (pos[c] - centre) * (fitted[c] / radius[c]);
+				radius[c] = fitted[c];
+			}
+	}
+
 	// The outline trimmed; a pinhole is not outline (eroding around it would only widen it).
 	if (params.trim_border_cells > 0) {
 		cv::Mat present(H, W, CV_8U, cv::Scalar(0));
