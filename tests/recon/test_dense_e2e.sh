@@ -1,10 +1,14 @@
 #!/bin/sh
 # End to end on two random booths no tuning looked at (facescan simulate --booth random --seed 7
 # and 8: other lenses, pitches, rolls, masks, head pose and look, and a ~0.3 px calibration error):
-# the dense surface must beat the paper's sparse mesh on completeness and stay within bounds.
-# Measured (release, 2026-12-02, after the dark flat regions were dropped): seed 7 RMS 0.27 mm,
-# 92.8 % (sparse 85.6 %), 106k face vertices; seed 8 RMS 0.44 mm, 52.5 % (sparse 16.8 %), 68k. The issue's floors (0.30 mm, 85 %) are
-# not met on every random booth yet: docs/benchmarks.md has the whole matrix.
+# the dense surface must beat the paper's sparse mesh on completeness, and meet the issue's floors
+# over the face with a margin — RMS <= 0.27 mm (floor 0.30), face completeness >= 88 % (85),
+# >= 110k face vertices (100k) — except booth 8's RMS, which misses the floor (0.306 mm) and is
+# held below 0.33 so that it cannot get worse unseen.
+# Measured (release and ASan alike, 2026-12-07, after stage 9d's plane fit): seed 7 RMS 0.172 mm,
+# face completeness 95.1 % (head 93.7 %, sparse 80.2 %), 175k face vertices; seed 8 RMS 0.306 mm,
+# 93.8 % (head 75.1 %, sparse 36.6 %), 140k. The floors are not met on every random booth yet:
+# docs/benchmarks.md has the whole matrix.
 set -u
 bin=${FACESCAN_BIN:?}/facescan
 tmp=$(mktemp -d /tmp/facescan-dense-e2e.XXXXXX)
@@ -34,14 +38,18 @@ for seed in 7 8; do
 		{ echo "FAIL: evaluate on booth $seed"; fail=1; continue; }
 	rms=$(num "$tmp/d$seed-eval.json" rms_mm)
 	comp=$(num "$tmp/d$seed-eval.json" completeness)
+	face_comp=$(num "$tmp/d$seed-eval.json" face_completeness)
 	face=$(num "$tmp/d$seed-eval.json" face_vertices)
 	sparse=$(num "$tmp/s$seed-eval.json" completeness)
 	dense=$(num "$tmp/d$seed.json" dense)
-	echo "booth $seed: dense RMS $rms mm, completeness $comp (sparse $sparse), $face vertices on the face"
+	echo "booth $seed: dense RMS $rms mm, face completeness $face_comp, completeness $comp (sparse $sparse)," \
+		"$face vertices on the face"
+	max_rms=0.27
+	[ "$seed" = 8 ] && max_rms=0.33
 	check "booth $seed: the output is the dense surface" "'$dense' == 'True'"
-	check "booth $seed: RMS < 0.6 mm" "$rms < 0.6"
-	check "booth $seed: completeness > 0.45" "$comp > 0.45"
+	check "booth $seed: RMS <= $max_rms mm" "$rms <= $max_rms"
+	check "booth $seed: face completeness >= 0.88" "$face_comp >= 0.88"
 	check "booth $seed: dense completeness beats sparse by 5 points" "$comp > $sparse + 0.05"
-	check "booth $seed: > 50k vertices on the face" "$face > 50000"
+	check "booth $seed: >= 110k vertices on the face" "$face >= 110000"
 done
 exit $fail
