@@ -209,8 +209,9 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 
 	// Plane fit: each radius becomes the value, at its own direction, of the plane r(u, v) fitted
 	// (weighted least squares) to the agreeing radii of its window. A slanted surface and a
-	// one-sided window at the outline or at a hole keep their place exactly, which the 3-D mean
-	// above does not (more passes of it pull the outline in); another sheet beyond `agree_mm`
+	// one-sided window at the outline or at a hole keep their place (to ~0.01 mm: a plane's radius
+	// is not quite linear in the angles), which the 3-D mean above does not (more passes of it
+	// pull the outline in); another sheet beyond `agree_mm`
 	// takes no part. The vertex moves along its ray from the sphere's centre, so the outline
 	// stays where the pairs put it.
 	const int fit_cells =
