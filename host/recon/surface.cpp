@@ -41,6 +41,11 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			if (k++ % stride == 0)
 				some.emplace_back(p);
 	const ViewFrame vf = view_frame(some, cameras);
+	// A direction from the sphere's centre (d, any length) as the grid's two angles, radians.
+	auto angles_of = [&](const cv::Vec3d &d) {
+		const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
+		return cv::Point2d(std::atan2(x, z), std::atan2(y, std::hypot(x, z)));
+	};
 
 	// Directions → angles; the grid step in angle is the spacing at the median radius.
 	std::vector<Sample> samples;
@@ -51,11 +56,11 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		const DenseCloud &c = clouds[ci];
 		for (size_t i = 0; i < c.points.size(); ++i) {
 			const cv::Vec3d d = cv::Vec3d(cv::Point3d(c.points[i]) - vf.centre);
-			const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
 			const double r = cv::norm(d);
 			if (!(r > 1e-6) || !std::isfinite(r))
 				continue;
-			const float u = float(std::atan2(x, z)), v = float(std::atan2(y, std::hypot(x, z)));
+			const cv::Point2d a = angles_of(d);
+			const float u = float(a.x), v = float(a.y);
 			const double border = std::min<double>(c.border_mm[i], params.border_cap_mm);
 			const float w = float((border + params.border_floor_mm) * std::max(0.05f, c.confidence[i]));
 			samples.push_back({u, v, float(r), w, int(ci), c.points[i]});
@@ -79,9 +84,14 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		step *= 1.25;
 	stats.spacing_mm = step * r_med;
 	const int W = int(double(umax - umin) / step) + 3, H = int(double(vmax - vmin) / step) + 3;
+	// Angles → grid coordinates (cells; a one-cell margin on every side).
+	auto to_cells = [&](const cv::Point2d &a) {
+		return cv::Point2f(float((a.x - double(umin)) / step) + 1, float((a.y - double(vmin)) / step) + 1);
+	};
 	for (Sample &s : samples) {
-		s.u = float((s.u - umin) / step) + 1;
-		s.v = float((s.v - vmin) / step) + 1;
+		const cv::Point2f g = to_cells(cv::Point2d(s.u, s.v));
+		s.u = g.x;
+		s.v = g.y;
 	}
 
 	// Pass 1: each cell's strongest sample (bilinear splat weight times the sample's own).
@@ -211,22 +221,16 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 	// (weighted least squares) to the agreeing radii of its window. A slanted surface and a
 	// one-sided window at the outline or at a hole keep their place (to ~0.01 mm: a plane's radius
 	// is not quite linear in the angles), which the 3-D mean above does not (more passes of it
-	// pull the outline in); another sheet beyond `agree_mm`
-	// takes no part. The vertex moves along its ray from the sphere's centre, so the outline
-	// stays where the pairs put it.
+	// pull the outline in); another sheet beyond `agree_mm` takes no part. The vertex moves along
+	// its ray from the sphere's centre, so the outline stays where the pairs put it.
 	const int fit_cells =
 		params.plane_fit_mm > 0 ? std::max(1, int(std::lround(params.plane_fit_mm / stats.spacing_mm))) : 0;
 	if (fit_cells > 0) {
 		// Each vertex's direction in grid units, from its position (not its cell's centre).
 		std::vector<cv::Point2f> uv(n);
-		for (size_t c = 0; c < n; ++c) {
-			if (radius[c] <= 0)
-				continue;
-			const cv::Vec3d d = cv::Vec3d(cv::Point3d(pos[c]) - vf.centre);
-			const double x = d.dot(vf.right), y = d.dot(vf.up), z = d.dot(vf.towards);
-			uv[c] = cv::Point2f(float((std::atan2(x, z) - double(umin)) / step) + 1,
-					    float((std::atan2(y, std::hypot(x, z)) - double(vmin)) / step) + 1);
-		}
+		for (size_t c = 0; c < n; ++c)
+			if (radius[c] > 0)
+				uv[c] = to_cells(angles_of(cv::Vec3d(cv::Point3d(pos[c]) - vf.centre)));
 		const int R = fit_cells;
 		std::vector<float> fitted = radius;
 		// Rows are independent (each reads `radius`, writes its own cells of `fitted`).

@@ -510,7 +510,6 @@ void fusion_drops_spikes_keeps_steps(void **)
 	assert_true(low1 > 0.97 * low0 && high1 > 0.97 * high0);
 }
 
-
 // A plane slanted 40 degrees against the view rays, with a dome 5 mm in radius on it (a nose tip's
 // curvature), a point every 0.3 mm scattered 0.3 mm along its ray. The plane fit takes much of
 // the scatter; on the same surface without scatter it leaves the slanted plane where it is, its
@@ -591,6 +590,7 @@ void fusion_plane_fit_takes_noise_keeps_slopes(void **)
 	assert_true(clean1.rms < 0.02 && clean1.outline < 0.02);
 	assert_true(clean1.dome_top < 0.2);
 }
+
 } // namespace
 
 // Flat squares: their interiors (no texture) carry a wrong disparity, as SGBM's smoothness leaves
