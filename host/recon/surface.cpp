@@ -25,8 +25,10 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats)
 {
 	SurfaceStats stats;
-	if (!(params.spacing_mm > 0) || !(params.agree_mm > 0) || params.max_cells < 16)
-		return Status::error(-EINVAL, "surface: spacing, agreement and grid size must be positive");
+	// A cell's vertex is its samples' weighted mean: with no weight floor an empty cell would
+	// divide 0 by 0 and its NaN would reach the grid's indices.
+	if (!(params.spacing_mm > 0) || !(params.agree_mm > 0) || params.max_cells < 16 || !(params.min_weight > 0))
+		return Status::error(-EINVAL, "surface: spacing, agreement, grid size and weight floor must be positive");
 	std::vector<cv::Point3d> some;
 	size_t total = 0;
 	for (const DenseCloud &c : clouds)

@@ -36,7 +36,7 @@ struct SurfaceParams {
 	/// 2.45 mm (7 cells) gave -0.027 mm but rounds the tightest curves (nose, lips: truth
 	/// curvature > 0.2/mm) by up to +0.05 mm RMS where 1 mm lowers them. 0: off.
 	double plane_fit_mm = 1.0;
-	double min_weight = 0.05;     // cells with less total weight are empty
+	double min_weight = 0.05;     // cells with less total weight are empty (> 0)
 	long max_cells = 6000000;     // bigger grids take a coarser step (bounds memory)
 	int median_radius = 3;	      // cells: the neighbourhood of the outlier test (0: none)
 	double max_median_dev_mm = 1.0; // farther from the neighbourhood's median radius: an outlier

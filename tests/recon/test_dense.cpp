@@ -400,8 +400,12 @@ void fusion_makes_one_sheet(void **)
 	// vertex in some triangle with (nearly) two triangles per vertex (no cracks inside).
 	assert_true(mesh.triangles.size() > 1.9 * mesh.positions.size() - 4000);
 	assert_true(double(stats.vertices) < 1.05 * double(stats.cells));
-	// Nothing to fuse is an error, not a crash.
+	// Nothing to fuse is an error, not a crash; so is a weight floor of 0 (every empty cell
+	// would be a vertex at 0 / 0: it crashed before 2026-12-07).
 	assert_int_equal(fuse_dense({}, cams, SurfaceParams(), &mesh, &stats).code(), -ENODATA);
+	SurfaceParams no_floor;
+	no_floor.min_weight = 0;
+	assert_int_equal(fuse_dense(clouds, cams, no_floor, &mesh, &stats).code(), -EINVAL);
 }
 
 // A sphere cap with a hole of about 4 x 4 cells in its middle: trimming takes about one cell off
