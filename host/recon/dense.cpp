@@ -502,6 +502,31 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 			fit[i] = rms <= std::min(gate, 1e3) ? 1 : 0;
 		}
 	}
+	// Where the ring is one-sided the quadratic is free on the open side: a fit that leaves the
+	// range of the disparities it was fitted to is not used.
+	if (params.flat_max_overshoot_px >= 0) {
+		std::vector<float> lo(size_t(nl), std::numeric_limits<float>::max()),
+			hi(size_t(nl), std::numeric_limits<float>::lowest());
+		for (const RingPixel &q : ring) {
+			const size_t l = size_t(q.label);
+			if (fit[l] > 0 && std::fabs(coef[l].dot(basis(q.label, q.x, q.y)) - q.d) <= params.flat_max_fit_px) {
+				lo[l] = std::min(lo[l], q.d);
+				hi[l] = std::max(hi[l], q.d);
+			}
+		}
+		const double m = params.flat_max_overshoot_px;
+		for (int y = 0; y < valid.rows; ++y) {
+			const int *lr = labels.ptr<int>(y);
+			for (int x = 0; x < valid.cols; ++x) {
+				const size_t l = size_t(std::max(0, lr[x]));
+				if (l == 0 || fit[l] <= 0)
+					continue;
+				const double d = coef[l].dot(basis(int(l), x, y));
+				if (d < lo[l] - m || d > hi[l] + m)
+					fit[l] = 0;
+			}
+		}
+	}
 	// A flat region darker than its own edges is no lit square but a gap, a shadow or the band
 	// between two projectors' zones: SGBM's guess there is carried in from the texture around it
 	// and holds only near it (bench booth 101: dark flat points RMS 2-6 mm, bright ones 0.23).

@@ -89,8 +89,25 @@ struct DenseParams {
 	double flat_texture_std = 4;
 	int flat_ring_px = 3;
 	int flat_min_ring = 24;
-	double flat_max_fit_px = 0.5;
+	/// 0.5 before 2026-12-07: on booths whose cameras see the face at 0.35-0.5 mm a pixel (the
+	/// matching pixel twice that), the rings of about half the bright flat area missed it
+	/// (fresh booth 4811: their last fit 0.5 px RMS at the median, with 98 % of the ring inside
+	/// the gate) and kept SGBM's values, the largest part of the squared error there (flat
+	/// points 37-54 % of a pair's cloud, 57-77 % of its squared error, 0.43-0.77 mm RMS against
+	/// 0.29-0.43 textured). With `flat_max_overshoot_px`, on 96 scenes (4100-4111, 4200-4211,
+	/// 4800-4811 and, not looked at before, 5000-5011; both heads): RMS mean -0.0055, -0.0026,
+	/// -0.0050 and -0.0034 mm, face completeness +0.90, +0.99, +1.13 and +0.71 points, lower on
+	/// 1-3 scenes of each 24. The price: a ramp now fits the ring of a square split by a 4 px
+	/// step (test_dense); an 8 px one it does not. Asking 85 % of the ring at 1 px (and 70 % at
+	/// 0.5) kept the 4 px step out but halved what was won.
+	double flat_max_fit_px = 1.0;
 	double flat_min_inliers = 0.7; // of the ring: a ring split by a step fits one side only
+	/// A fitted quadratic that leaves its ring's range (the inliers' disparities) by more than this
+	/// anywhere in the region is not used: where the ring is one-sided (a square cut by the edge of
+	/// the match) the quadratic is free on the open side (fresh booth 4807 with the scanned head,
+	/// without it: a patch 5-9 mm off, RMS 0.317 -> 0.372 mm). A face's curve inside one square
+	/// stays well within a pixel of its edges' range. Negative: not checked.
+	double flat_max_overshoot_px = 1.0;
 	/// A flat region darker than its ring (a gap, a shadow, the band between two projectors'
 	/// zones: no lit square) keeps its pixels only within this many pixels of a textured match;
 	/// farther, nothing in the pattern supports SGBM's guess and they are dropped. 0: kept.
@@ -202,8 +219,10 @@ cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int s
 /// instead the quadratic d = f(x, y) fitted to the textured matches within `flat_ring_px` of it
 /// (the square's own edges) — least squares, then twice again on the ring pixels within 2× and 1×
 /// `flat_max_fit_px` of the last fit — when at least `flat_min_ring` pixels and `flat_min_inliers` of its
-/// ring survive with an RMS of at most `flat_max_fit_px`. Other regions (a ring that fits no quadratic:
-/// a large unpatterned patch, a mismatch at the edge) keep SGBM's values — except that a region
+/// ring survive with an RMS of at most `flat_max_fit_px` and the fit stays within
+/// `flat_max_overshoot_px` of the inliers' range over the whole region. Other regions (a ring that
+/// fits no quadratic: a large unpatterned patch, a mismatch at the edge, a one-sided ring) keep
+/// SGBM's values — except that a region
 /// darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between projector
 /// zones) loses its pixels farther than `flat_dark_reach_px` from any textured match, and a bright
 /// one whose ring fits no quadratic those farther than `flat_unfitted_reach_px` (cleared in

@@ -620,11 +620,12 @@ static void flat_squares_refilled_from_their_edges(void **)
 	// A few mismatched edge pixels (the robust fit must shrug them off)...
 	for (int k = 0; k < 40; ++k)
 		total.at<float>(2 + 24 * (k % 8), 3 + 24 * (k / 8)) += 6.f;
-	// ...and one square (cell (5, 4)) whose ring straddles a step of 4 px: no single quadratic.
+	// ...and one square (cell (5, 4)) whose ring straddles a step of 8 px: no single quadratic.
+	// (4 px before 2026-12-07, with a fit to 0.5 px: at 1 px a ramp fits a 4 px step's ring.)
 	const cv::Rect stepped(5 * 24, 4 * 24, 24, 24);
 	for (int y = stepped.y; y < stepped.y + 24; ++y)
 		for (int x = stepped.x + 12; x < stepped.x + 24; ++x)
-			total.at<float>(y, x) += 4.f;
+			total.at<float>(y, x) += 8.f;
 	const cv::Mat before = total.clone();
 	// Lit squares: brighter than the edges around them.
 	cv::Mat grey(size, CV_8U, cv::Scalar(120));
@@ -658,6 +659,51 @@ static void flat_squares_refilled_from_their_edges(void **)
 	assert_int_equal(fill_flat_regions(grey, cv::Mat(size, CV_32F, cv::Scalar(12)), params, &valid_none, &untouched, &none), 0);
 	assert_true(cv::countNonZero(untouched != before) == 0);
 	assert_int_equal(cv::countNonZero(valid_none != valid), 0);
+}
+
+// A flat region whose ring is one-sided (a square cut by the edge of the match: here its ring lies
+// along its left and top sides only) leaves the quadratic free on the open side: fitted exactly to
+// the ring, it runs 12 px past the ring's range in the far corner. It is not used; without the
+// range check it would be.
+static void flat_fit_stays_within_its_ring(void **)
+{
+	const cv::Size size(120, 100);
+	const cv::Rect flat(30, 20, 60, 60);
+	auto bowl = [&](int x, int y) { return 30.0 + 0.004 * (x - 30) * (x - 30) + 0.004 * (y - 20) * (y - 20); };
+	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F, cv::Scalar(12)), total(size, CV_32F);
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x)
+			total.at<float>(y, x) = float(bowl(x, y));
+	std_l(flat).setTo(1);
+	total(flat).setTo(40); // SGBM's guess inside
+	valid(cv::Rect(flat.br().x, 0, size.width - flat.br().x, size.height)).setTo(0); // open on the right
+	valid(cv::Rect(0, flat.br().y, size.width, size.height - flat.br().y)).setTo(0);  // and below
+	cv::Mat grey(size, CV_8U, cv::Scalar(120));
+	grey(flat).setTo(200); // lit: a square, not a gap
+	const cv::Mat before = total.clone();
+	DenseParams params;
+	params.flat_unfitted_reach_px = 0; // keep SGBM's guess: only the refill is judged here
+	cv::Mat v = valid.clone(), t = total.clone();
+	DenseStats stats;
+	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);
+	assert_int_equal(stats.flat_kept, flat.area());
+	assert_int_equal(cv::countNonZero(t != before), 0);
+	// Unchecked, the quadratic fills it and overshoots the ring's range.
+	DenseParams unchecked = params;
+	unchecked.flat_max_overshoot_px = -1;
+	cv::Mat v2 = valid.clone(), t2 = total.clone();
+	DenseStats st2;
+	assert_int_equal(fill_flat_regions(grey, std_l, unchecked, &v2, &t2, &st2), flat.area());
+	double ring_max = 0, fill_max = 0;
+	for (int y = flat.y - 3; y < flat.br().y; ++y)
+		for (int x = flat.x - 3; x < flat.br().x; ++x)
+			if (!flat.contains(cv::Point(x, y)) && valid.at<uchar>(y, x))
+				ring_max = std::max(ring_max, double(total.at<float>(y, x)));
+	for (int y = flat.y; y < flat.br().y; ++y)
+		for (int x = flat.x; x < flat.br().x; ++x)
+			fill_max = std::max(fill_max, double(t2.at<float>(y, x)));
+	std::printf("one-sided ring: ring up to %.1f px, unchecked fill up to %.1f px\n", ring_max, fill_max);
+	assert_true(fill_max > ring_max + 10);
 }
 
 // A wide flat region darker than its edges (a shadow, the band between two projectors' zones) is
@@ -723,7 +769,7 @@ static void unfitted_flat_regions_dropped_beyond_reach(void **)
 	const cv::Rect band(40, 20, 60, 80); // 60 x 80 px without texture
 	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F, cv::Scalar(12));
 	cv::Mat total(size, CV_32F, cv::Scalar(30));
-	total(cv::Rect(70, 0, 90, 120)).setTo(34); // a step through the band: no quadratic fits its ring
+	total(cv::Rect(70, 0, 90, 120)).setTo(38); // a step through the band: no quadratic fits its ring
 	std_l(band).setTo(1);
 	cv::Mat grey(size, CV_8U, cv::Scalar(120));
 	grey(band).setTo(220); // lit: not the dark rule
@@ -1002,6 +1048,7 @@ int main(void)
 		cmocka_unit_test(flat_squares_refilled_from_their_edges),
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
+		cmocka_unit_test(flat_fit_stays_within_its_ring),
 		cmocka_unit_test(dark_gaps_bridged_between_squares),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
 		cmocka_unit_test(refinement_starts_where_the_disparity_is),

@@ -3,12 +3,12 @@
 # and 8: other lenses, pitches, rolls, masks, head pose and look, and a ~0.3 px calibration error):
 # the dense surface must beat the paper's sparse mesh on completeness, and meet the issue's floors
 # over the face with a margin — RMS <= 0.27 mm (floor 0.30), face completeness >= 88 % (85),
-# >= 110k face vertices (100k) — except booth 8's RMS, which misses the floor (0.306 mm) and is
-# held below 0.33 so that it cannot get worse unseen.
-# Measured (release and ASan alike, 2026-12-07, after stage 9d's plane fit): seed 7 RMS 0.172 mm,
-# face completeness 95.1 % (head 93.7 %, sparse 80.2 %), 175k face vertices; seed 8 RMS 0.306 mm,
-# 93.8 % (head 75.1 %, sparse 36.6 %), 140k. The floors are not met on every random booth yet:
-# docs/benchmarks.md has the whole matrix.
+# >= 110k face vertices (100k) — except booth 8's RMS, held to the floor itself (0.30 mm).
+# Measured (release, 2026-12-07, after the flat refill's 1 px fit): seed 7 RMS
+# 0.170 mm, face completeness 95.3 % (head 93.5 %, sparse 80.2 %), 175k face vertices; seed 8 RMS
+# 0.290 mm (0.306 before, when it missed the floor and was held below 0.33), 94.8 % (head 75.8 %,
+# sparse 36.6 %), 141k. The floors are not met on every random booth yet: docs/benchmarks.md has
+# the whole matrix.
 set -u
 bin=${FACESCAN_BIN:?}/facescan
 tmp=$(mktemp -d /tmp/facescan-dense-e2e.XXXXXX)
@@ -45,7 +45,7 @@ for seed in 7 8; do
 	echo "booth $seed: dense RMS $rms mm, face completeness $face_comp, completeness $comp (sparse $sparse)," \
 		"$face vertices on the face"
 	max_rms=0.27
-	[ "$seed" = 8 ] && max_rms=0.33
+	[ "$seed" = 8 ] && max_rms=0.30
 	check "booth $seed: the output is the dense surface" "'$dense' == 'True'"
 	check "booth $seed: RMS <= $max_rms mm" "$rms <= $max_rms"
 	check "booth $seed: face completeness >= 0.88" "$face_comp >= 0.88"
