@@ -96,10 +96,11 @@ struct DenseParams {
 	/// points 37-54 % of a pair's cloud, 57-77 % of its squared error, 0.43-0.77 mm RMS against
 	/// 0.29-0.43 textured). With `flat_max_overshoot_px`, on 96 scenes (4100-4111, 4200-4211,
 	/// 4800-4811 and, not looked at before, 5000-5011; both heads): RMS mean -0.0055, -0.0026,
-	/// -0.0050 and -0.0034 mm, face completeness +0.90, +0.99, +1.13 and +0.71 points, lower on
-	/// 1-3 scenes of each 24. The price: a ramp now fits the ring of a square split by a 4 px
-	/// step (test_dense); an 8 px one it does not. Asking 85 % of the ring at 1 px (and 70 % at
-	/// 0.5) kept the 4 px step out but halved what was won.
+	/// -0.0050 and -0.0034 mm (higher on 4-9 scenes of each 24, by at most 0.019), face
+	/// completeness +0.90, +0.99, +1.13 and +0.71 points (lower on 1-2 of each 24, by at most 0.8).
+	/// The price: a ramp now fits the ring of a square split by a 4 px step (test_dense); an 8 px
+	/// one it does not. Asking 85 % of the ring at 1 px (and 70 % at 0.5) kept the 4 px step out
+	/// but halved what was won.
 	double flat_max_fit_px = 1.0;
 	double flat_min_inliers = 0.7; // of the ring: a ring split by a step fits one side only
 	/// A fitted quadratic that leaves its ring's range (the inliers' disparities) by more than this
