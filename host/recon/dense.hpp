@@ -223,11 +223,10 @@ cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int s
 /// ring survive with an RMS of at most `flat_max_fit_px` and the fit stays within
 /// `flat_max_overshoot_px` of the inliers' range over the whole region. Other regions (a ring that
 /// fits no quadratic: a large unpatterned patch, a mismatch at the edge, a one-sided ring) keep
-/// SGBM's values — except that a region
-/// darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between projector
-/// zones) loses its pixels farther than `flat_dark_reach_px` from any textured match, and a bright
-/// one whose ring fits no quadratic those farther than `flat_unfitted_reach_px` (cleared in
-/// `valid`). `total` is the disparity (CV_32F), `valid` the matched mask (CV_8U), `grey_l` the
+/// SGBM's values — except that a region darker in `grey_l` than its ring (no lit square: a gap, a
+/// shadow, the band between projector zones) loses its pixels farther than `flat_dark_reach_px`
+/// from any textured match, and a bright one whose ring fits no quadratic those farther than
+/// `flat_unfitted_reach_px` (cleared in `valid`). `total` is the disparity (CV_32F), `valid` the matched mask (CV_8U), `grey_l` the
 /// left view (CV_8U). Returns the pixels refilled; counts them, the kept and the dropped ones
 /// (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted) in `stats`.
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
