@@ -664,7 +664,8 @@ static void flat_squares_refilled_from_their_edges(void **)
 // A flat region whose ring is one-sided (a square cut by the edge of the match: here its ring lies
 // along its left and top sides only) leaves the quadratic free on the open side: fitted exactly to
 // the ring, it runs 12 px past the ring's range in the far corner. It is not used; without the
-// range check it would be.
+// range check it would be. (Cut into tiles, the pieces along the ring fit their share of it and
+// stay within its range: those are refilled, the far ones not.)
 static void flat_fit_stays_within_its_ring(void **)
 {
 	const cv::Size size(120, 100);
@@ -683,6 +684,21 @@ static void flat_fit_stays_within_its_ring(void **)
 	const cv::Mat before = total.clone();
 	DenseParams params;
 	params.flat_unfitted_reach_px = 0; // keep SGBM's guess: only the refill is judged here
+	{
+		cv::Mat v = valid.clone(), t = total.clone();
+		DenseStats stats;
+		const int n = fill_flat_regions(grey, std_l, params, &v, &t, &stats);
+		double worst = 0;
+		for (int y = flat.y; y < flat.br().y; ++y)
+			for (int x = flat.x; x < flat.br().x; ++x)
+				if (t.at<float>(y, x) != 40.f)
+					worst = std::max(worst, std::fabs(t.at<float>(y, x) - bowl(x, y)));
+		std::printf("one-sided ring, tiles of %d px: %d of %d px refilled, worst %.4f px off\n",
+			    params.flat_tile_px, n, flat.area(), worst);
+		assert_true(n > 0 && n < flat.area());
+		assert_true(worst < 0.01);
+	}
+	params.flat_tile_px = 0; // the whole region: the range check alone
 	cv::Mat v = valid.clone(), t = total.clone();
 	DenseStats stats;
 	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);
@@ -704,6 +720,64 @@ static void flat_fit_stays_within_its_ring(void **)
 			fill_max = std::max(fill_max, double(t2.at<float>(y, x)));
 	std::printf("one-sided ring: ring up to %.1f px, unchecked fill up to %.1f px\n", ring_max, fill_max);
 	assert_true(fill_max > ring_max + 10);
+}
+
+// One flat region that spans many squares: the dark gaps between lit squares, joined into a
+// lattice, over a surface no quadratic follows that far. Fitted whole, its ring (the squares'
+// textured edges) fits nothing and it keeps SGBM's guess; cut into `flat_tile_px` tiles, each
+// piece fits the edges within its tile and the lattice comes back onto the surface.
+static void large_flat_regions_fitted_piecewise(void **)
+{
+	const cv::Size size(200, 200);
+	auto truth = [](int x, int y) { return 40.0 + 4.0 * std::sin(x / 20.0) * std::cos(y / 25.0); };
+	// 24 px cells off the tile grid: a gap 8 px wide (4 + 4 across the cell's border), edges of
+	// 4 px, a lit square of 8 px.
+	enum { kGap, kEdge, kSquare };
+	auto part = [](int x, int y) {
+		const int cx = (x + 10) % 24, cy = (y + 10) % 24;
+		auto of = [](int c) { return c < 4 || c >= 20 ? kGap : c < 8 || c >= 16 ? kEdge : kSquare; };
+		return std::min(of(cx), of(cy));
+	};
+	cv::Mat valid(size, CV_8U, cv::Scalar(255)), std_l(size, CV_32F), total(size, CV_32F);
+	cv::Mat grey(size, CV_8U), gap(size, CV_8U, cv::Scalar(0));
+	for (int y = 0; y < size.height; ++y)
+		for (int x = 0; x < size.width; ++x) {
+			const int k = part(x, y);
+			std_l.at<float>(y, x) = k == kEdge ? 12.f : 1.f;
+			grey.at<uchar>(y, x) = k == kGap ? 40 : k == kEdge ? 120 : 200;
+			total.at<float>(y, x) = float(truth(x, y) + (k == kEdge ? 0 : 2)); // SGBM's guess: 2 px off
+			gap.at<uchar>(y, x) = k == kGap ? 255 : 0;
+		}
+	const int gap_px = cv::countNonZero(gap);
+	DenseParams params;
+	params.flat_unfitted_reach_px = 0; // keep what is not refilled: only the fit is judged
+	params.flat_dark_reach_px = 0;
+	for (const int tile : {0, 24}) {
+		params.flat_tile_px = tile;
+		cv::Mat v = valid.clone(), t = total.clone();
+		DenseStats stats;
+		fill_flat_regions(grey, std_l, params, &v, &t, &stats);
+		int refilled = 0;
+		double sum2 = 0;
+		for (int y = 0; y < size.height; ++y)
+			for (int x = 0; x < size.width; ++x)
+				if (gap.at<uchar>(y, x)) {
+					const double e = t.at<float>(y, x) - truth(x, y);
+					sum2 += e * e;
+					refilled += t.at<float>(y, x) != total.at<float>(y, x);
+				}
+		const double rms = std::sqrt(sum2 / gap_px);
+		std::printf("gap lattice, tiles of %d px: %d of %d px refilled, RMS %.3f px off the surface\n", tile,
+			    refilled, gap_px, rms);
+		assert_int_equal(cv::countNonZero(v), size.area());
+		if (tile == 0) {
+			assert_int_equal(refilled, 0);
+			assert_true(rms > 1.9);
+		} else {
+			assert_true(refilled > 0.9 * gap_px);
+			assert_true(rms < 0.2);
+		}
+	}
 }
 
 // A wide flat region darker than its edges (a shadow, the band between two projectors' zones) is
@@ -774,6 +848,7 @@ static void unfitted_flat_regions_dropped_beyond_reach(void **)
 	cv::Mat grey(size, CV_8U, cv::Scalar(120));
 	grey(band).setTo(220); // lit: not the dark rule
 	DenseParams params;
+	params.flat_tile_px = 0; // whole regions: tiles off the step would each fit their side
 	cv::Mat v = valid.clone(), t = total.clone();
 	DenseStats stats;
 	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);
@@ -1049,6 +1124,7 @@ int main(void)
 		cmocka_unit_test(dark_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(unfitted_flat_regions_dropped_beyond_reach),
 		cmocka_unit_test(flat_fit_stays_within_its_ring),
+		cmocka_unit_test(large_flat_regions_fitted_piecewise),
 		cmocka_unit_test(dark_gaps_bridged_between_squares),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
 		cmocka_unit_test(refinement_starts_where_the_disparity_is),
