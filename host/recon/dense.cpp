@@ -409,12 +409,6 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 	const int nr = cv::connectedComponentsWithStats(flat, labels, region, centroids, 4, CV_32S);
 	if (nr <= 1)
 		return 0;
-	// Labels 1..nr-1 are the regions; a region of more than flat_tile_px² pixels is also cut by a
-	// grid of flat_tile_px into pieces, labelled from nr on, each fitted from its own share of
-	// the ring. Where the dark gaps join into one lattice around many squares, one quadratic
-	// over the whole follows none of them (fresh booth 4811: 20 dark regions of 34.5k px, fit RMS
-	// 2.3 px); its pieces do. A piece that cannot be fitted (too little ring of its own: the
-	// middle of a large square) takes its region's fit.
 	const size_t n_regions = size_t(nr);
 	std::vector<double> area(n_regions), cx(n_regions), cy(n_regions);
 	for (int l = 1; l < nr; ++l) {
@@ -422,8 +416,68 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		cx[size_t(l)] = centroids.at<double>(l, 0);
 		cy[size_t(l)] = centroids.at<double>(l, 1);
 	}
+	const int r = std::max(1, params.flat_ring_px);
+	// The ring's pixels, gathered once: (label, x, y, disparity).
+	struct RingPixel {
+		int label, x, y;
+		float d;
+	};
+	std::vector<RingPixel> ring;
+	std::vector<int> ring_count(n_regions, 0);
+	std::vector<double> ring_grey(n_regions, 0.0), region_grey(n_regions, 0.0);
+	for (int y = 0; y < valid.rows; ++y) {
+		const uchar *vr = valid.ptr<uchar>(y), *fr = flat.ptr<uchar>(y), *gr = grey_l.ptr<uchar>(y);
+		const int *lr0 = labels.ptr<int>(y);
+		const float *tr = total->ptr<float>(y);
+		for (int x = 0; x < valid.cols; ++x)
+			if (fr[x] && lr0[x] > 0)
+				region_grey[size_t(lr0[x])] += gr[x];
+		for (int x = 0; x < valid.cols; ++x) {
+			if (!vr[x] || fr[x])
+				continue;
+			// The flat regions this textured match borders (a few: the squares it separates,
+			// more where the flat pixels are broken into specks).
+			constexpr int kMaxSeen = 12;
+			int seen[kMaxSeen], ns = 0;
+			for (int dy = -r; dy <= r && ns < kMaxSeen; ++dy) {
+				const int yy = y + dy;
+				if (yy < 0 || yy >= valid.rows)
+					continue;
+				const int *lr = labels.ptr<int>(yy);
+				for (int dx = -r; dx <= r && ns < kMaxSeen; ++dx) {
+					const int xx = x + dx;
+					if (xx < 0 || xx >= valid.cols || lr[xx] <= 0)
+						continue;
+					if (std::find(seen, seen + ns, lr[xx]) == seen + ns)
+						seen[ns++] = lr[xx];
+				}
+			}
+			for (int k = 0; k < ns; ++k) {
+				ring.push_back({seen[k], x, y, tr[x]});
+				ring_count[size_t(seen[k])]++;
+				ring_grey[size_t(seen[k])] += gr[x];
+			}
+		}
+	}
+	// A flat region darker than its own edges is no lit square but a gap, a shadow or the band
+	// between two projectors' zones: SGBM's guess there is carried in from the texture around it
+	// and holds only near it (bench booth 101: dark flat points RMS 2-6 mm, bright ones 0.23).
+	std::vector<char> dark(n_regions, 0);
+	for (int l = 1; l < nr; ++l) {
+		const size_t i = size_t(l);
+		dark[i] = ring_count[i] == 0 || region_grey[i] / area[i] < ring_grey[i] / ring_count[i];
+	}
+	// A dark region of more than flat_tile_px² pixels is also cut by a grid of flat_tile_px into
+	// pieces, labelled from nr on, each fitted from its own share of the ring: where the gaps join
+	// into one lattice around many squares, one quadratic over the whole follows none of them
+	// (fresh booth 4811: 20 dark regions of 34.5k px, fit RMS 2.3 px); its pieces do. A piece that
+	// cannot be fitted (too little ring of its own) takes its region's fit. A large bright region
+	// (a square's interior) is not cut: there its pieces, fitted to short stretches of edge near
+	// the match's border, kept values the unfitted reach would drop (bench booth 111: RMS +0.002
+	// to +0.020 mm on its four scenes with bright regions cut too).
 	const int tile = params.flat_tile_px;
 	cv::Mat pieces(labels.size(), CV_32S, cv::Scalar(0));
+	std::vector<int> region_of; // of each piece, from nr on
 	if (tile > 0) {
 		const int64_t tiles_x = (labels.cols + tile - 1) / tile, tiles_y = (labels.rows + tile - 1) / tile;
 		std::unordered_map<int64_t, int> piece_of; // (region, tile) -> label
@@ -432,7 +486,7 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 			int *pr = pieces.ptr<int>(y);
 			for (int x = 0; x < labels.cols; ++x) {
 				const int l = lr[x];
-				if (l <= 0 || region.at<int>(l, cv::CC_STAT_AREA) <= tile * tile)
+				if (l <= 0 || !dark[size_t(l)] || area[size_t(l)] <= double(tile) * tile)
 					continue;
 				const int64_t key = (l * tiles_y + y / tile) * tiles_x + x / tile;
 				auto it = piece_of.emplace(key, int(area.size())).first;
@@ -440,6 +494,7 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 					area.push_back(0);
 					cx.push_back(0);
 					cy.push_back(0);
+					region_of.push_back(l);
 				}
 				const size_t p = size_t(it->second);
 				pr[x] = int(p);
@@ -452,6 +507,31 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 			cx[p] /= area[p];
 			cy[p] /= area[p];
 		}
+		// Each piece's ring: its region's ring pixels within flat_ring_px of the piece.
+		const size_t region_ring = ring.size();
+		for (size_t k = 0; k < region_ring; ++k) {
+			const RingPixel q = ring[k];
+			int seen[4] = {0, 0, 0, 0}, ns = 0; // a ring pixel is near 4 tiles at most
+			for (int dy = -r; dy <= r; ++dy) {
+				const int yy = q.y + dy;
+				if (yy < 0 || yy >= labels.rows)
+					continue;
+				const int *pr = pieces.ptr<int>(yy);
+				for (int dx = -r; dx <= r; ++dx) {
+					const int xx = q.x + dx;
+					if (xx < 0 || xx >= labels.cols || pr[xx] <= 0 ||
+					    region_of[size_t(pr[xx]) - n_regions] != q.label)
+						continue;
+					if (ns < 4 && std::find(seen, seen + ns, pr[xx]) == seen + ns)
+						seen[ns++] = pr[xx];
+				}
+			}
+			for (int j = 0; j < ns; ++j)
+				ring.push_back({seen[j], q.x, q.y, q.d});
+		}
+		ring_count.resize(area.size(), 0);
+		for (size_t k = region_ring; k < ring.size(); ++k)
+			ring_count[size_t(ring[k].label)]++;
 	}
 	const int nl = int(area.size());
 	using Mat6 = Eigen::Matrix<double, 6, 6>;
@@ -470,53 +550,6 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		phi << 1, u, v, u * u, u * v, v * v;
 		return phi;
 	};
-	const int r = std::max(1, params.flat_ring_px);
-	// The ring's pixels, gathered once: (label, x, y, disparity), for regions and pieces alike.
-	struct RingPixel {
-		int label, x, y;
-		float d;
-	};
-	std::vector<RingPixel> ring;
-	std::vector<int> ring_count(size_t(nl), 0);
-	std::vector<double> ring_grey(size_t(nl), 0.0), region_grey(size_t(nl), 0.0);
-	for (int y = 0; y < valid.rows; ++y) {
-		const uchar *vr = valid.ptr<uchar>(y), *fr = flat.ptr<uchar>(y), *gr = grey_l.ptr<uchar>(y);
-		const int *lr0 = labels.ptr<int>(y);
-		const float *tr = total->ptr<float>(y);
-		for (int x = 0; x < valid.cols; ++x)
-			if (fr[x] && lr0[x] > 0)
-				region_grey[size_t(lr0[x])] += gr[x];
-		for (int x = 0; x < valid.cols; ++x) {
-			if (!vr[x] || fr[x])
-				continue;
-			// The regions and pieces this textured match borders (a few at most: the squares
-			// it separates, and where tiles meet, their pieces).
-			constexpr int kMaxSeen = 12;
-			int seen[kMaxSeen], ns = 0;
-			auto see = [&](int l) {
-				if (l > 0 && ns < kMaxSeen && std::find(seen, seen + ns, l) == seen + ns)
-					seen[ns++] = l;
-			};
-			for (int dy = -r; dy <= r; ++dy) {
-				const int yy = y + dy;
-				if (yy < 0 || yy >= valid.rows)
-					continue;
-				const int *lr = labels.ptr<int>(yy), *pr = pieces.ptr<int>(yy);
-				for (int dx = -r; dx <= r; ++dx) {
-					const int xx = x + dx;
-					if (xx < 0 || xx >= valid.cols)
-						continue;
-					see(lr[xx]);
-					see(pr[xx]);
-				}
-			}
-			for (int k = 0; k < ns; ++k) {
-				ring.push_back({seen[k], x, y, tr[x]});
-				ring_count[size_t(seen[k])]++;
-				ring_grey[size_t(seen[k])] += gr[x];
-			}
-		}
-	}
 	// A robust fit: least squares, then again on the ring pixels within a shrinking gate of the
 	// previous fit (a square's edge may border a mismatch or another surface).
 	std::vector<Vec6> coef(size_t(nl), Vec6::Zero());
@@ -578,15 +611,6 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 						fit[i] = 0;
 				}
 		}
-	}
-	// A flat region darker than its own edges is no lit square but a gap, a shadow or the band
-	// between two projectors' zones: SGBM's guess there is carried in from the texture around it
-	// and holds only near it (bench booth 101: dark flat points RMS 2-6 mm, bright ones 0.23).
-	// Judged on the whole region, not its pieces.
-	std::vector<char> dark(n_regions, 0);
-	for (int l = 1; l < nr; ++l) {
-		const size_t i = size_t(l);
-		dark[i] = ring_count[i] == 0 || region_grey[i] / area[i] < ring_grey[i] / ring_count[i];
 	}
 	cv::Mat from_texture;
 	if (params.flat_dark_reach_px > 0 || params.flat_unfitted_reach_px > 0) {

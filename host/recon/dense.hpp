@@ -109,16 +109,18 @@ struct DenseParams {
 	/// without it: a patch 5-9 mm off, RMS 0.317 -> 0.372 mm). A face's curve inside one square
 	/// stays well within a pixel of its edges' range. Negative: not checked.
 	double flat_max_overshoot_px = 1.0;
-	/// Flat regions of more than this squared are also fitted piecewise, on a grid of this many
-	/// pixels, each piece from its share of the ring; a piece whose own ring fits no quadratic
-	/// (the middle of a large square has none) takes the whole region's fit. Where the dark gaps
-	/// join into one lattice around many squares, no quadratic follows it whole (fresh booth
-	/// 4811: 20 dark regions of 34.5k px, fit RMS 2.3 px) and SGBM's guess stayed. 2026-12-07,
-	/// both heads, RMS mean: -0.0058 mm on 4800-4811 (tuned on), -0.0070 on 4100-4111, -0.0013
-	/// on 4200-4211, -0.0043 on 5000-5011 and, not looked at before, -0.0063 on 5600-5611
-	/// (higher on 2-8 of each 24, by at most 0.015); face completeness +0.70, +0.46, +0.46,
-	/// +0.35 and +0.56 points (lower on 1-6, by at most 1.9). Fixed pixels, not pitches: 16 px
-	/// lost on booths of every pitch (RMS +0.004 mean on 4800-4811), 32 px won a little less
+	/// Dark flat regions (darker than their ring: the gaps between the squares) of more than this
+	/// squared are also fitted piecewise, on a grid of this many pixels, each piece from its share
+	/// of the ring; a piece whose own ring fits no quadratic takes the whole region's fit. Where
+	/// the gaps join into one lattice around many squares, no quadratic follows it whole (fresh
+	/// booth 4811: 20 dark regions of 34.5k px, fit RMS 2.3 px) and SGBM's guess stayed.
+	/// 2026-12-07, both heads, RMS mean: -0.0067 mm on 4800-4811 (tuned on), -0.0080 on
+	/// 4100-4111, -0.0045 on 4200-4211, -0.0043 on 5000-5011, -0.0061 on 5200-5211 and -0.0085
+	/// on 5600-5611 (higher on 2-4 of each 24, by at most 0.009); face completeness +0.80, +0.48,
+	/// +0.58, +0.35, +0.23 and +0.55 points (lower on 2-5, by at most 1.9). Bright regions cut
+	/// too lost on bench booth 111 (RMS +0.002 to +0.020 mm on its four scenes: pieces fitted to
+	/// short stretches of edge near the match's border keep what the unfitted reach would drop).
+	/// Fixed pixels, not pitches: 16 px lost on booths of every pitch, 32 px won a little less
 	/// than 24. 0: whole regions only.
 	int flat_tile_px = 24;
 	/// A flat region darker than its ring (a gap, a shadow, the band between two projectors'
@@ -233,18 +235,17 @@ cv::Mat erode_outline(const cv::Mat &mask, int pinhole_px, int iterations, int s
 /// (the square's own edges) — least squares, then twice again on the ring pixels within 2× and 1×
 /// `flat_max_fit_px` of the last fit — when at least `flat_min_ring` pixels and `flat_min_inliers`
 /// of its ring survive with an RMS of at most `flat_max_fit_px` and the fit stays within
-/// `flat_max_overshoot_px` of the inliers' range over the whole region. A region of more than
-/// `flat_tile_px`² pixels is also cut by a grid of `flat_tile_px` into pieces, each fitted the same
-/// way from the ring pixels within `flat_ring_px` of it; a piece takes its own fit where it has
-/// one, its region's otherwise. Other regions (a ring that fits no quadratic: a large unpatterned
-/// patch, a mismatch at the edge, a one-sided ring) keep SGBM's values — except that a region
-/// darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between projector
-/// zones; judged whole, not by pieces) loses its pixels farther than `flat_dark_reach_px` from any
-/// textured match, and a bright one whose ring fits no quadratic those farther than
-/// `flat_unfitted_reach_px` (cleared in `valid`). `total` is the disparity (CV_32F), `valid` the
-/// matched mask (CV_8U), `grey_l` the left view (CV_8U). Returns the pixels refilled; counts them,
-/// the kept and the dropped ones (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted)
-/// in `stats`.
+/// `flat_max_overshoot_px` of the inliers' range over the whole region. A dark region (below) of
+/// more than `flat_tile_px`² pixels is also cut by a grid of `flat_tile_px` into pieces, each
+/// fitted the same way from the ring pixels within `flat_ring_px` of it; a piece takes its own fit
+/// where it has one, its region's otherwise. Other regions (a ring that fits no quadratic: a large
+/// unpatterned patch, a mismatch at the edge, a one-sided ring) keep SGBM's values — except that a
+/// region darker in `grey_l` than its ring (no lit square: a gap, a shadow, the band between
+/// projector zones) loses its pixels farther than `flat_dark_reach_px` from any textured match, and
+/// a bright one whose ring fits no quadratic those farther than `flat_unfitted_reach_px` (cleared
+/// in `valid`). `total` is the disparity (CV_32F), `valid` the matched mask (CV_8U), `grey_l` the
+/// left view (CV_8U). Returns the pixels refilled; counts them, the kept and the dropped ones
+/// (`flat_dropped` dark, `flat_unfitted_dropped` bright and unfitted) in `stats`.
 int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DenseParams &params, cv::Mat *valid,
 		      cv::Mat *total, DenseStats *stats);
 

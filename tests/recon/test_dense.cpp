@@ -664,8 +664,8 @@ static void flat_squares_refilled_from_their_edges(void **)
 // A flat region whose ring is one-sided (a square cut by the edge of the match: here its ring lies
 // along its left and top sides only) leaves the quadratic free on the open side: fitted exactly to
 // the ring, it runs 12 px past the ring's range in the far corner. It is not used; without the
-// range check it would be. (Cut into tiles, the pieces along the ring fit their share of it and
-// stay within its range: those are refilled, the far ones not.)
+// range check it would be. A lit region is not cut into tiles (flat_tile_px): with tiles on, it
+// is still not refilled.
 static void flat_fit_stays_within_its_ring(void **)
 {
 	const cv::Size size(120, 100);
@@ -684,21 +684,6 @@ static void flat_fit_stays_within_its_ring(void **)
 	const cv::Mat before = total.clone();
 	DenseParams params;
 	params.flat_unfitted_reach_px = 0; // keep SGBM's guess: only the refill is judged here
-	{
-		cv::Mat v = valid.clone(), t = total.clone();
-		DenseStats stats;
-		const int n = fill_flat_regions(grey, std_l, params, &v, &t, &stats);
-		double worst = 0;
-		for (int y = flat.y; y < flat.br().y; ++y)
-			for (int x = flat.x; x < flat.br().x; ++x)
-				if (t.at<float>(y, x) != 40.f)
-					worst = std::max(worst, std::fabs(t.at<float>(y, x) - bowl(x, y)));
-		std::printf("one-sided ring, tiles of %d px: %d of %d px refilled, worst %.4f px off\n",
-			    params.flat_tile_px, n, flat.area(), worst);
-		assert_true(n > 0 && n < flat.area());
-		assert_true(worst < 0.01);
-	}
-	params.flat_tile_px = 0; // the whole region: the range check alone
 	cv::Mat v = valid.clone(), t = total.clone();
 	DenseStats stats;
 	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);
@@ -848,7 +833,6 @@ static void unfitted_flat_regions_dropped_beyond_reach(void **)
 	cv::Mat grey(size, CV_8U, cv::Scalar(120));
 	grey(band).setTo(220); // lit: not the dark rule
 	DenseParams params;
-	params.flat_tile_px = 0; // whole regions: tiles off the step would each fit their side
 	cv::Mat v = valid.clone(), t = total.clone();
 	DenseStats stats;
 	assert_int_equal(fill_flat_regions(grey, std_l, params, &v, &t, &stats), 0);

@@ -4,10 +4,10 @@
 # the dense surface must beat the paper's sparse mesh on completeness, and meet the issue's floors
 # over the face with a margin — RMS <= 0.27 mm (floor 0.30), face completeness >= 88 % (85),
 # >= 110k face vertices (100k) — except booth 8's RMS, held to the floor itself (0.30 mm).
-# Measured (release, 2026-12-07, after the flat refill's 1 px fit and its pieces): seed 7 RMS
-# 0.165 mm, face completeness 95.4 % (head 93.6 %, sparse 80.2 %), 175k face vertices; seed 8 RMS
-# 0.283 mm (0.306 before the 1 px fit, when it missed the floor and was held below 0.33), 95.2 %
-# (head 74.0 %, sparse 36.6 %), 135k. The floors are not met on every random booth yet: docs/benchmarks.md has
+# Measured (release, 2026-12-07, after the flat refill's 1 px fit and the dark regions' pieces):
+# seed 7 RMS 0.165 mm, face completeness 95.3 % (head 93.6 %, sparse 80.2 %), 175k face vertices;
+# seed 8 RMS 0.283 mm (0.306 before the 1 px fit, when it missed the floor and was held below
+# 0.33), 95.2 % (head 73.9 %, sparse 36.6 %), 134k. The floors are not met on every random booth yet: docs/benchmarks.md has
 # the whole matrix.
 set -u
 bin=${FACESCAN_BIN:?}/facescan
