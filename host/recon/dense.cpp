@@ -511,7 +511,8 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		const size_t region_ring = ring.size();
 		for (size_t k = 0; k < region_ring; ++k) {
 			const RingPixel q = ring[k];
-			int seen[4] = {0, 0, 0, 0}, ns = 0; // a ring pixel is near 4 tiles at most
+			// 4 pieces at most while a tile is wider than the window.
+			int seen[4] = {0, 0, 0, 0}, ns = 0;
 			for (int dy = -r; dy <= r; ++dy) {
 				const int yy = q.y + dy;
 				if (yy < 0 || yy >= labels.rows)
