@@ -120,8 +120,9 @@ struct DenseParams {
 	/// +0.58, +0.35, +0.23 and +0.55 points (lower on 2-5, by at most 1.9). Bright regions cut
 	/// too lost on bench booth 111 (RMS +0.002 to +0.020 mm on its four scenes: pieces fitted to
 	/// short stretches of edge near the match's border keep what the unfitted reach would drop).
-	/// Fixed pixels, not pitches: 16 px lost on booths of every pitch, 32 px won a little less
-	/// than 24. 0: whole regions only.
+	/// Dark regions only: 16 and 32 px are within 0.002 mm of 24 (RMS mean on 4800-4811 and
+	/// 5600-5611); cutting bright regions too, 16 px lost on booths of every pitch (+0.004 mm on
+	/// 4800-4811), so the size is in pixels, not pitches. 0: whole regions only.
 	int flat_tile_px = 24;
 	/// A flat region darker than its ring (a gap, a shadow, the band between two projectors'
 	/// zones: no lit square) keeps its pixels only within this many pixels of a textured match;
