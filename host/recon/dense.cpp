@@ -417,6 +417,25 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		cy[size_t(l)] = centroids.at<double>(l, 1);
 	}
 	const int r = std::max(1, params.flat_ring_px);
+	// The distinct labels > 0 of `m` (CV_32S) within r of (x, y) that `accept` takes, the first
+	// `max` of them in scan order, into `seen`; returns how many.
+	auto labels_near = [r](const cv::Mat &m, int x, int y, int max, auto &&accept, int *seen) {
+		int ns = 0;
+		for (int dy = -r; dy <= r && ns < max; ++dy) {
+			const int yy = y + dy;
+			if (yy < 0 || yy >= m.rows)
+				continue;
+			const int *row = m.ptr<int>(yy);
+			for (int dx = -r; dx <= r && ns < max; ++dx) {
+				const int xx = x + dx;
+				if (xx < 0 || xx >= m.cols || row[xx] <= 0 || !accept(row[xx]))
+					continue;
+				if (std::find(seen, seen + ns, row[xx]) == seen + ns)
+					seen[ns++] = row[xx];
+			}
+		}
+		return ns;
+	};
 	// The ring's pixels, gathered once: (label, x, y, disparity).
 	struct RingPixel {
 		int label, x, y;
@@ -437,21 +456,8 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 				continue;
 			// The flat regions this textured match borders (a few: the squares it separates,
 			// more where the flat pixels are broken into specks).
-			constexpr int kMaxSeen = 12;
-			int seen[kMaxSeen], ns = 0;
-			for (int dy = -r; dy <= r && ns < kMaxSeen; ++dy) {
-				const int yy = y + dy;
-				if (yy < 0 || yy >= valid.rows)
-					continue;
-				const int *lr = labels.ptr<int>(yy);
-				for (int dx = -r; dx <= r && ns < kMaxSeen; ++dx) {
-					const int xx = x + dx;
-					if (xx < 0 || xx >= valid.cols || lr[xx] <= 0)
-						continue;
-					if (std::find(seen, seen + ns, lr[xx]) == seen + ns)
-						seen[ns++] = lr[xx];
-				}
-			}
+			int seen[12];
+			const int ns = labels_near(labels, x, y, 12, [](int) { return true; }, seen);
 			for (int k = 0; k < ns; ++k) {
 				ring.push_back({seen[k], x, y, tr[x]});
 				ring_count[size_t(seen[k])]++;
@@ -512,21 +518,10 @@ int fill_flat_regions(const cv::Mat &grey_l, const cv::Mat &std_l, const DensePa
 		for (size_t k = 0; k < region_ring; ++k) {
 			const RingPixel q = ring[k];
 			// 4 pieces at most while a tile is wider than the window.
-			int seen[4] = {0, 0, 0, 0}, ns = 0;
-			for (int dy = -r; dy <= r; ++dy) {
-				const int yy = q.y + dy;
-				if (yy < 0 || yy >= labels.rows)
-					continue;
-				const int *pr = pieces.ptr<int>(yy);
-				for (int dx = -r; dx <= r; ++dx) {
-					const int xx = q.x + dx;
-					if (xx < 0 || xx >= labels.cols || pr[xx] <= 0 ||
-					    region_of[size_t(pr[xx]) - n_regions] != q.label)
-						continue;
-					if (ns < 4 && std::find(seen, seen + ns, pr[xx]) == seen + ns)
-						seen[ns++] = pr[xx];
-				}
-			}
+			int seen[4];
+			const int ns = labels_near(
+				pieces, q.x, q.y, 4, [&](int p) { return region_of[size_t(p) - n_regions] == q.label; },
+				seen);
 			for (int j = 0; j < ns; ++j)
 				ring.push_back({seen[j], q.x, q.y, q.d});
 		}

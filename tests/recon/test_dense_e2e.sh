@@ -7,8 +7,8 @@
 # Measured (release, 2026-12-07, after the flat refill's 1 px fit and the dark regions' pieces):
 # seed 7 RMS 0.165 mm, face completeness 95.3 % (head 93.6 %, sparse 80.2 %), 175k face vertices;
 # seed 8 RMS 0.283 mm (0.306 before the 1 px fit, when it missed the floor and was held below
-# 0.33), 95.2 % (head 73.9 %, sparse 36.6 %), 134k. The floors are not met on every random booth yet: docs/benchmarks.md has
-# the whole matrix.
+# 0.33), 95.2 % (head 73.9 %, sparse 36.6 %), 134k. The floors are not met on every random
+# booth yet: docs/benchmarks.md has the whole matrix.
 set -u
 bin=${FACESCAN_BIN:?}/facescan
 tmp=$(mktemp -d /tmp/facescan-dense-e2e.XXXXXX)
