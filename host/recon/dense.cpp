@@ -178,6 +178,44 @@ cv::Mat pattern_lit(const cv::Mat &grey32, double pitch, const DenseParams &para
 	return lit;
 }
 
+// The disparity the guide's points give the pair: each point projected into both rectified views;
+// per cell of the left view the nearest (largest disparity: where points of the far side of the
+// head fall among those of the near side, the left camera sees the near side); the cells' points
+// interpolated over triangles at most `guide_edge_factor` cells long, so no triangle spans a hole
+// or an outline.
+cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b,
+			const std::vector<cv::Point3f> &points, const DenseParams &params)
+{
+	const int cell = std::max(1, params.guide_cell_px);
+	const int cols = (rp.size.width + cell - 1) / cell, rows = (rp.size.height + cell - 1) / cell;
+	std::vector<cv::Point2d> best_at(size_t(cols * rows));
+	std::vector<double> best_d(size_t(cols * rows), -std::numeric_limits<double>::infinity());
+	const cv::Matx33d Ra = rp.R1 * a.R, Rb = rp.R2 * b.R;
+	const cv::Vec3d Ta = rp.R1 * a.T, Tb = rp.R2 * b.T;
+	for (const cv::Point3f &p : points) {
+		const cv::Vec3d w(p.x, p.y, p.z), qa = Ra * w + Ta, qb = Rb * w + Tb;
+		if (!(qa[2] > 1e-6 && qb[2] > 1e-6))
+			continue;
+		const double x = rp.f * qa[0] / qa[2] + rp.cx1, y = rp.f * qa[1] / qa[2] + rp.cy;
+		const double d = x - (rp.f * qb[0] / qb[2] + rp.cx2);
+		if (!(x >= 0 && y >= 0 && x < rp.size.width && y < rp.size.height))
+			continue;
+		const size_t k = size_t(int(y) / cell * cols + int(x) / cell);
+		if (d > best_d[k]) {
+			best_d[k] = d;
+			best_at[k] = cv::Point2d(x, y);
+		}
+	}
+	std::vector<cv::Point2d> seeds;
+	std::vector<double> seed_d;
+	for (size_t k = 0; k < best_d.size(); ++k)
+		if (std::isfinite(best_d[k])) {
+			seeds.push_back(best_at[k]);
+			seed_d.push_back(best_d[k]);
+		}
+	return disparity_prior(rp.size, seeds, seed_d, params.guide_edge_factor, 0, nullptr);
+}
+
 } // namespace
 
 // The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
@@ -188,7 +226,8 @@ cv::Mat pattern_lit(const cv::Mat &grey32, double pitch, const DenseParams &para
 static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const cv::Mat &frame_b,
 			   const RectifiedPair &rp, const CameraModel &a, const CameraModel &b,
 			   const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
-			   const DenseParams &params, cv::Mat *ret_lit, DenseStats *stats)
+			   const DenseParams &params, const std::vector<cv::Point3f> *guide, cv::Mat *ret_lit,
+			   DenseStats *stats)
 {
 	const bool coded = int(seeds.size()) >= params.min_seeds;
 	cv::Mat tight = coded ? disparity_prior(rp.size, seeds, seed_d, params.tight_edge_factor,
@@ -203,6 +242,22 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 	cv::findNonZero(need, nz);
 	const int lit_px = cv::countNonZero(*ret_lit);
 	stats->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	// The guided pass: the dense points fill what the code's small triangles miss, before the
+	// coarse search, which keeps only what neither reaches.
+	if (guide && !guide->empty()) {
+		const cv::Mat guided = guide_disparity(rp, a, b, *guide, params);
+		for (int y = 0; y < tight.rows; ++y) {
+			float *tr = tight.ptr<float>(y);
+			const float *gr = guided.ptr<float>(y);
+			for (int x = 0; x < tight.cols; ++x)
+				if (tr[x] != tr[x] && gr[x] == gr[x]) {
+					tr[x] = gr[x];
+					stats->guided_pixels++;
+				}
+		}
+		need = *ret_lit & ~has_value(tight);
+		cv::findNonZero(need, nz);
+	}
 	if (!params.coarse)
 		return coded ? loose : tight;
 	if (nz.empty())
@@ -907,7 +962,7 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats, DensePairDebug *ret_debug)
+		  DenseStats *ret_stats, DensePairDebug *ret_debug, const std::vector<cv::Point3f> *guide)
 {
 	DenseStats stats;
 	DenseCloud cloud;
@@ -945,7 +1000,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
 	grey_l.convertTo(grey_l32, CV_32F);
 	cv::Mat lit;
-	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, &lit, &stats);
+	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, guide, &lit, &stats);
 	// Why each pixel has no point, for the debug output only.
 	const bool why = ret_debug != nullptr;
 	cv::Mat reason;

@@ -10,6 +10,8 @@
 // (a neighbouring square of the same colour is a whole square pitch away, beyond the residual).
 // SGBM's own left-right check and speckle filter reject inconsistent pixels; a zero-mean NCC of
 // the matched windows gives each point a confidence.
+// Each pair is matched twice: the second time every pair's first points fill its prior where the
+// code's triangles do not reach (`DenseParams::guided_pass`).
 #pragma once
 
 #include "capture/capture_set.hpp"
@@ -67,6 +69,13 @@ struct DenseParams {
 	/// and 5 % the wider range lost more than it won (3222 -11.9, 3111 -2.3, 3215 +0.1): hence
 	/// the limit. 0: the seeds' range only.
 	double min_seed_cover = 0.03;
+	/// Each pair is matched twice: the second time its prior is, where the code's small triangles
+	/// give none, every pair's first points (its own too) seen from it — one per `guide_cell_px`
+	/// cell of its rectified left view, the nearest, linearly interpolated over triangles at most
+	/// `guide_edge_factor` cells long — and the coarse search only where those do not reach.
+	bool guided_pass = true;
+	int guide_cell_px = 6;
+	double guide_edge_factor = 3.0;
 	/// Pixels darker than this (0-255 grey, pattern frame, either view) are unlit: not matched.
 	int min_intensity = 12;
 	/// Pixels whose grey standard deviation over a window of `contrast_window_pitches` square
@@ -205,6 +214,7 @@ struct DenseStats {
 	int seeds = 0;	       // sparse points used
 	int prior_pixels = 0;  // pixels with a prior (matching resolution)
 	int coarse_pixels = 0; // ... of which the coarse search gave the prior
+	int guided_pixels = 0; // ... of which the pairs' first points gave it (the guided pass)
 	double seed_cover = 0;	// fraction of the lit pixels the seeds' small triangles cover
 	bool coarse_over_volume = false; // the coarse search spanned the working volume's disparities
 	int unlit = 0;	       // prior pixels dropped as not under the pattern
@@ -344,8 +354,11 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 
 /// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
 /// the seeds). Frames are the pair's 8-bit BGR pattern frames.
+/// `guide`: dense points (world mm) that give the prior where the code's small triangles do not
+/// (`DenseParams::guided_pass`), or nullptr.
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
+		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr,
+		  const std::vector<cv::Point3f> *guide = nullptr);
 
 } // namespace facescan::recon
