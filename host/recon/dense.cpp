@@ -178,18 +178,23 @@ cv::Mat pattern_lit(const cv::Mat &grey32, double pitch, const DenseParams &para
 	return lit;
 }
 
-// The disparity the guide's points give the pair: each point projected into both rectified views;
-// per cell of the left view the nearest (largest disparity: where points of the far side of the
-// head fall among those of the near side, the left camera sees the near side); the cells' points
-// interpolated over triangles at most `guide_edge_factor` cells long, so no triangle spans a hole
-// or an outline.
+// The disparity the guide's points give the pair: each point projected into both rectified views.
+// A point more than `guide_hidden_px` of disparity behind the nearest point in its cell of the
+// right view is hidden from the right camera, and left out; of the others, per cell of the left
+// view the nearest (where points of the far side of the head fall among those of the near side,
+// the left camera sees the near side). The cells' points are interpolated over triangles at most
+// `guide_edge_factor` cells long, so no triangle spans a hole or an outline.
 cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b,
 			const std::vector<cv::Point3f> &points, const DenseParams &params)
 {
 	const int cell = std::max(1, params.guide_cell_px);
 	const int cols = (rp.size.width + cell - 1) / cell, rows = (rp.size.height + cell - 1) / cell;
-	std::vector<cv::Point2d> best_at(size_t(cols * rows));
-	std::vector<double> best_d(size_t(cols * rows), -std::numeric_limits<double>::infinity());
+	const auto cell_of = [&](double x, double y) { return size_t(int(y) / cell * cols + int(x) / cell); };
+	const auto inside = [&](double x) { return x >= 0 && x < rp.size.width; };
+	const double none = -std::numeric_limits<double>::infinity();
+	std::vector<double> nearest_right(size_t(cols * rows), none);
+	std::vector<cv::Point3d> projected; // left x, y, disparity
+	projected.reserve(points.size());
 	const cv::Matx33d Ra = rp.R1 * a.R, Rb = rp.R2 * b.R;
 	const cv::Vec3d Ta = rp.R1 * a.T, Tb = rp.R2 * b.T;
 	for (const cv::Point3f &p : points) {
@@ -198,12 +203,23 @@ cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const Cam
 			continue;
 		const double x = rp.f * qa[0] / qa[2] + rp.cx1, y = rp.f * qa[1] / qa[2] + rp.cy;
 		const double d = x - (rp.f * qb[0] / qb[2] + rp.cx2);
-		if (!(x >= 0 && y >= 0 && x < rp.size.width && y < rp.size.height))
+		if (!(inside(x) && y >= 0 && y < rp.size.height))
 			continue;
-		const size_t k = size_t(int(y) / cell * cols + int(x) / cell);
-		if (d > best_d[k]) {
-			best_d[k] = d;
-			best_at[k] = cv::Point2d(x, y);
+		projected.emplace_back(x, y, d);
+		if (inside(x - d)) {
+			double &n = nearest_right[cell_of(x - d, y)];
+			n = std::max(n, d);
+		}
+	}
+	std::vector<cv::Point2d> best_at(size_t(cols * rows));
+	std::vector<double> best_d(size_t(cols * rows), none);
+	for (const cv::Point3d &q : projected) {
+		if (inside(q.x - q.z) && q.z < nearest_right[cell_of(q.x - q.z, q.y)] - params.guide_hidden_px)
+			continue;
+		const size_t k = cell_of(q.x, q.y);
+		if (q.z > best_d[k]) {
+			best_d[k] = q.z;
+			best_at[k] = cv::Point2d(q.x, q.y);
 		}
 	}
 	std::vector<cv::Point2d> seeds;

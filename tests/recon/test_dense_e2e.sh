@@ -5,9 +5,9 @@
 # over the face with a margin — RMS <= 0.27 mm (floor 0.30), face completeness >= 88 % (85),
 # >= 110k face vertices (100k).
 # Measured (release, 2026-12-07, after the guided second match, DenseParams::guided_pass):
-# seed 7 RMS 0.180 mm (0.165 before it), face completeness 96.3 % (95.3; head 94.4 %, sparse
-# 80.2 %), 180k face vertices; seed 8 RMS 0.239 mm (0.283 before it, when it was held to the floor
-# itself, 0.30), 97.2 % (95.2; head 82.3 %, sparse 36.6 %), 159k. The floors are not met on every
+# seed 7 RMS 0.177 mm (0.165 before it), face completeness 97.1 % (95.3; head 95.2 %, sparse
+# 80.2 %), 181k face vertices; seed 8 RMS 0.235 mm (0.283 before it, when it was held to the floor
+# itself, 0.30), 97.2 % (95.2; head 84.2 %, sparse 36.6 %), 161k. The floors are not met on every
 # random booth yet: docs/benchmarks.md has the whole matrix.
 set -u
 bin=${FACESCAN_BIN:?}/facescan

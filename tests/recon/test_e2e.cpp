@@ -99,7 +99,7 @@ static void test_default_scene(void **)
 	// A camera that reads no code (here: its colour lost, the hue letters gone; on a foreign
 	// booth: squares too small or rolled for the decoder) still sees the pattern's texture. Its
 	// pairs run unseeded, searched over the working volume, instead of failing the scan.
-	// Measured here: 0.131 mm / 89.9 % (2026-12-07, with the guided second match: the unseeded
+	// Measured here: 0.131 mm / 89.7 % (2026-12-07, with the guided second match: the unseeded
 	// pair's prior is its neighbours' points; 0.221 / 82.0 before it, when it was the coarse search).
 	CaptureSet grey = set;
 	make_grey(&grey.frames[3]);
@@ -120,7 +120,7 @@ static void test_default_scene(void **)
 	// head: two projectors' grids overlapping on the face left cameras 1 and 3 unread): cameras 0
 	// and 2 still read it, so the pattern is there, and every pair runs unseeded. --sparse, made of
 	// code matches, fails; so does a scan where no camera reads the code (all grey).
-	// Measured: 0.165 mm / 72.8 % (2026-12-07, with the guided second match; 0.255 / 48.0 before
+	// Measured: 0.160 mm / 72.9 % (2026-12-07, with the guided second match; 0.255 / 48.0 before
 	// it; grey views: the coarse search has one channel, not three).
 	CaptureSet alternate = grey;
 	make_grey(&alternate.frames[1]);
@@ -148,8 +148,8 @@ static void test_default_scene(void **)
 
 	// One pair's dense stage fails (here: camera 3's calibration turned 80 degrees about its
 	// vertical axis, so pair 2-3 converges past what the rectification takes): the scan keeps the
-	// other pairs' surface and the report names the pair and the reason. Measured: 0.119 mm /
-	// 91.4 %, 193k vertices, 2026-12-07 (the completeness is counted by the true cameras, which
+	// other pairs' surface and the report names the pair and the reason. Measured: 0.120 mm /
+	// 91.4 %, 194k vertices, 2026-12-07 (the completeness is counted by the true cameras, which
 	// still see it).
 	CaptureSet turned = set;
 	{
@@ -177,8 +177,8 @@ static void test_default_scene(void **)
 
 	// No code match survives triangulation (on random booth 301: every pair's code words disagree):
 	// the paper's mesh is impossible, the dense stage alone carries the scan; --sparse still fails
-	// with the fusion's reason. Measured 2026-12-07: RMS 0.143 mm, completeness 93.1 % (all seeded:
-	// 0.121 / 94.6).
+	// with the fusion's reason. Measured 2026-12-07: RMS 0.142 mm, completeness 92.9 % (all seeded:
+	// 0.120 / 94.4).
 	recon::ReconParams unseeded;
 	unseeded.triangulate.min_depth_mm = 1e9; // every triangulated point "behind" a camera
 	recon::Mesh unseeded_mesh;
