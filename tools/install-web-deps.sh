@@ -4,7 +4,8 @@
 #        build/web/node_modules: three.js (GLTFLoader, DRACOLoader, Draco decoder wasm) that the
 #        viewer serves, and the Khronos glTF validator the tests run (npm ci from
 #        host/viewer/package-lock.json: exact versions, checked integrity)
-#   py   build/pyenv: Python trimesh (+ numpy, pillow), the independent mesh reader of the tests
+#   py   build/pyenv: Python trimesh (+ numpy, pillow, rtree for its ray queries), the independent
+#        mesh reader of the tests
 #   scan build/cache/scan-head: a real head for `facescan simulate --head scan`: the CT of a
 #        patient's head ("ProMED CT 0051", 256 x 256 x 108 voxels, 0.96 x 0.96 x 1.5 mm, crown
 #        to upper lip) that Debian's invesalius-examples ships (GPL-2, its copyright file is
@@ -48,7 +49,7 @@ web)
 	;;
 py)
 	dir=$build/pyenv
-	want="trimesh==4.5.3 numpy==2.4.6 pillow==13.0.0"
+	want="trimesh==4.5.3 numpy==2.4.6 pillow==13.0.0 rtree==1.3.0"
 	stamp=$dir/.installed
 	if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
 		exit 0

@@ -84,27 +84,21 @@ rim[edges[count == 1].ravel()] = True
 for _ in range(2):
     rim[m.edges[rim[m.edges[:, 0]], 1]] = True
 facing &= ~rim
-tri = v[m.faces]
-def first_hit(x, y):  # z of the mesh's nearest surface along the front view's ray through (x, y)
-    t = tri[(tri[:, :, 0].min(1) <= x) & (tri[:, :, 0].max(1) >= x) &
-            (tri[:, :, 1].min(1) <= y) & (tri[:, :, 1].max(1) >= y)]
-    e0, e1, r = t[:, 1, :2] - t[:, 0, :2], t[:, 2, :2] - t[:, 0, :2], np.array([x, y]) - t[:, 0, :2]
-    den = e0[:, 0] * e1[:, 1] - e1[:, 0] * e0[:, 1]
-    ok = np.abs(den) > 1e-12
-    den = np.where(ok, den, 1)
-    s = (r[:, 0] * e1[:, 1] - e1[:, 0] * r[:, 1]) / den
-    u = (e0[:, 0] * r[:, 1] - r[:, 0] * e0[:, 1]) / den
-    hit = ok & (s >= 0) & (u >= 0) & (s + u <= 1)
-    z = t[:, 0, 2] + s * (t[:, 1, 2] - t[:, 0, 2]) + u * (t[:, 2, 2] - t[:, 0, 2])
-    return z[hit].max() if hit.any() else None
-# Nothing in front of it: the front view's ray through it meets the surface first at it, and the
+top = v[:, 2].max() + 10
+# Nothing in front of it: the front view's ray through it meets the mesh first at it, and the
 # rays 1 mm around it meet it within 1.5 mm of its depth (the same surface at up to 45 degrees,
 # not a nose or a fold in front). Checking by neighbouring vertices instead (none within 3 mm
 # across and 0.5 mm nearer) refused every vertex of a slanted cheek on a mesh as fine as 0.35 mm.
 def visible(i):
     x, y, z = v[i]
-    hits = [first_hit(x + dx, y + dy) for dx, dy in ((0, 0), (1, 0), (-1, 0), (0, 1), (0, -1))]
-    return all(h is not None for h in hits) and hits[0] <= z + 0.5 and max(hits[1:]) <= z + 1.5
+    xy = np.array([[x, y], [x + 1, y], [x - 1, y], [x, y + 1], [x, y - 1]])
+    origins = np.column_stack([xy, np.full(len(xy), top)])
+    hit, ray, _ = m.ray.intersects_location(origins, np.tile([0.0, 0.0, -1.0], (len(xy), 1)),
+                                            multiple_hits=False)
+    if len(set(ray.tolist())) < len(xy):
+        return False
+    first = dict(zip(ray.tolist(), hit[:, 2]))
+    return first[0] <= z + 0.5 and max(first[k] for k in range(1, len(xy))) <= z + 1.5
 def pick(tx, ty):
     cost = np.hypot(v[:, 0] - tx, v[:, 1] - ty) + np.where(facing, 0, 1e9)
     for i in np.argsort(cost)[:3000]:
