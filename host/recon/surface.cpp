@@ -306,6 +306,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 	// Vertices: one per cell with a radius.
 	Mesh mesh;
 	std::vector<int> vid(n, -1);
+	std::vector<unsigned char> two_pairs; // per vertex: its cell was averaged from two or more clouds
 	for (int y = 0; y < H; ++y)
 		for (int x = 0; x < W; ++x) {
 			const size_t c = size_t(y) * size_t(W) + size_t(x);
@@ -313,6 +314,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 				continue;
 			vid[c] = int(mesh.positions.size());
 			mesh.positions.push_back(pos[c]);
+			two_pairs.push_back((from[c] & (from[c] - 1)) != 0);
 		}
 	// Triangles: two per grid square (one when a corner is missing), none across a jump.
 	const double max_edge = params.max_edge_steps * stats.spacing_mm;
@@ -356,7 +358,9 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		}
 	// Pieces: a sheet split off the face by a gap (a rim of the crown seen at grazing angles, a
 	// speck of hair) is more often wrong than right; only pieces of at least `min_piece_fraction`
-	// of the largest one stay.
+	// of the largest one stay — and smaller ones two pairs agree on (`piece_two_pair_fraction` of
+	// their vertices averaged from two clouds): one pair's mismatch is not repeated by another
+	// pair, with its own cameras, at the same place.
 	{
 		std::vector<int> parent(mesh.positions.size());
 		for (size_t i = 0; i < parent.size(); ++i)
@@ -374,15 +378,22 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 				if (a != b)
 					parent[size_t(a)] = b;
 			}
-		std::vector<int> size(parent.size(), 0);
+		std::vector<int> size(parent.size(), 0), vertices(parent.size(), 0), merged(parent.size(), 0);
 		for (const cv::Vec3i &t : mesh.triangles)
 			size[size_t(find(t[0]))]++;
+		for (size_t i = 0; i < parent.size(); ++i) {
+			const size_t r = size_t(find(int(i)));
+			vertices[r]++;
+			merged[r] += two_pairs[i];
+		}
 		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
 		const double min_size = params.min_piece_fraction * largest;
 		std::vector<cv::Vec3i> kept;
 		kept.reserve(mesh.triangles.size());
 		for (const cv::Vec3i &t : mesh.triangles) {
-			if (size[size_t(find(t[0]))] >= min_size)
+			const size_t r = size_t(find(t[0]));
+			if (size[r] >= min_size || (params.piece_two_pair_fraction > 0 &&
+						 merged[r] >= params.piece_two_pair_fraction * vertices[r]))
 				kept.push_back(t);
 			else
 				stats.piece_triangles_dropped++;

@@ -41,6 +41,16 @@ struct SurfaceParams {
 	int median_radius = 3;	      // cells: the neighbourhood of the outlier test (0: none)
 	double max_median_dev_mm = 1.0; // farther from the neighbourhood's median radius: an outlier
 	double min_piece_fraction = 0.02; // connected pieces smaller than this * the largest are dropped
+	/// ... unless at least this fraction of their vertices were averaged from two or more pairs
+	/// (0: off). Where the surface falls apart into pieces (bench booth 111: mouth, chin and a
+	/// cheek 2-6k triangles each, under 2 % of the largest), the ones a second pair confirms stay:
+	/// 111-head1110 face completeness 76.9 -> 80.1 %, 111-head1112 79.5 -> 83.1, RMS -0.001 mm
+	/// (106-head1060 +1.3 points, +0.018 mm: a piece 13 % of whose vertices are > 1 mm off). Of
+	/// what the size rule drops on the bench's 48 scenes (2026-12-07), this keeps 7 % of the
+	/// vertices and 0.2 % of the badly placed ones (pieces whose median is > 1 mm off). Fresh
+	/// booths 6400-6411 and 7200-7211 (48 scenes): 45 unchanged, 6404 +1.3 points / +0.004 mm,
+	/// RMS at most +0.007 mm.
+	double piece_two_pair_fraction = 0.2;
 	/// The surface's outline is trimmed by this many cells: a cell there is fed only by points at
 	/// their pairs' matched borders (1-2 mm off 5-8 times as often as inside: bench booth 103,
 	/// 111, fresh booth 3104), and the pairs' own rim (DenseParams::rim_px) is kept one pixel

@@ -1134,6 +1134,51 @@ static void steep_test_keeps_stretched_surfaces(void **)
 	assert_int_equal(cv::countNonZero(steep_pixels(lone, d, params)), 0);
 }
 
+// A sphere cap (one pair's) and, 3 degrees beyond its edge (a gap of ~4.7 mm, far wider than a
+// triangle's longest allowed edge), a patch 2 x 2 degrees: far under 2 % of the cap, so a
+// piece the size rule would drop. Seen by one pair only, it goes (a lone sheet is more often a
+// mismatch than not); seen by two pairs that agree on it, it stays.
+void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
+{
+	const std::vector<CameraModel> cams = synth::ring();
+	const double R = 90, deg = CV_PI / 180;
+	auto add = [&](DenseCloud *cloud, double az0, double az1, double el0, double el1, double r) {
+		for (double el = el0; el <= el1 + 1e-9; el += 0.1)
+			for (double az = az0; az <= az1 + 1e-9; az += 0.1) {
+				const cv::Vec3d n(std::cos(el * deg) * std::sin(az * deg), std::sin(el * deg),
+						  std::cos(el * deg) * std::cos(az * deg));
+				cloud->points.emplace_back(cv::Point3d(n * r));
+				cloud->confidence.push_back(1.f);
+				cloud->border_mm.push_back(
+					float(std::min({az - az0, az1 - az, el - el0, el1 - el}) * deg * R));
+			}
+	};
+	// Vertices of the mesh on the patch (azimuth beyond the cap's edge).
+	auto patch_vertices = [&](const std::vector<DenseCloud> &clouds, SurfaceStats *ret_stats) {
+		Mesh mesh;
+		assert_true(fuse_dense(clouds, cams, SurfaceParams(), &mesh, ret_stats).ok());
+		int on_patch = 0;
+		for (const cv::Point3f &p : mesh.positions)
+			on_patch += std::atan2(p.x, p.z) / deg > 21;
+		return on_patch;
+	};
+	std::vector<DenseCloud> one(2), two(3);
+	add(&one[0], -20, 20, -20, 20, R);
+	add(&one[1], 23, 25, -1, 1, R);
+	two[0] = one[0];
+	add(&two[1], 23, 25, -1, 1, R + 0.1);
+	add(&two[2], 23, 25, -1, 1, R - 0.1);
+	SurfaceStats s_one, s_two;
+	const int one_pair = patch_vertices(one, &s_one), two_pairs = patch_vertices(two, &s_two);
+	std::printf("small piece: %d vertices kept seen by one pair (%d triangles dropped), %d seen by two\n",
+		    one_pair, s_one.piece_triangles_dropped, two_pairs);
+	assert_int_equal(one_pair, 0);
+	assert_true(s_one.piece_triangles_dropped > 0);
+	// The patch's cells, less its trimmed outline: ~ (2 degrees / 0.22-degree cells)^2.
+	assert_true(two_pairs > 40);
+	assert_int_equal(s_two.piece_triangles_dropped, 0);
+}
+
 int main(void)
 {
 	const struct CMUnitTest tests[] = {
@@ -1159,6 +1204,7 @@ int main(void)
 		cmocka_unit_test(fusion_trims_the_outline_not_the_holes),
 		cmocka_unit_test(fusion_drops_spikes_keeps_steps),
 		cmocka_unit_test(fusion_plane_fit_takes_noise_keeps_slopes),
+		cmocka_unit_test(fusion_keeps_small_pieces_two_pairs_agree_on),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
