@@ -45,7 +45,8 @@ struct SurfaceParams {
 	/// (0: off). Where the surface falls apart into pieces (bench booth 111: mouth, chin and a
 	/// cheek 2-6k triangles each, under 2 % of the largest), the ones a second pair confirms stay:
 	/// 111-head1110 face completeness 76.9 -> 80.1 %, 111-head1112 79.5 -> 83.1, RMS -0.001 mm
-	/// (106-head1060 +1.3 points, +0.018 mm: a piece 13 % of whose vertices are > 1 mm off). Of
+	/// (106-head1060 and 1061: +1.3 and +0.3 points, +0.018 and +0.019 mm, a kept piece 13 % of
+	/// whose vertices are > 1 mm off). Of
 	/// what the size rule drops on the bench's 48 scenes (2026-12-07), this keeps 7 % of the
 	/// vertices and 0.2 % of the badly placed ones (pieces whose median is > 1 mm off). Fresh
 	/// booths 6400-6411 and 7200-7211 (48 scenes): 45 unchanged, 6404 +1.3 points / +0.004 mm,
