@@ -46,11 +46,10 @@ struct SurfaceParams {
 	/// cheek 2-6k triangles each, under 2 % of the largest), the ones a second pair confirms stay:
 	/// 111-head1110 face completeness 76.9 -> 80.1 %, 111-head1112 79.5 -> 83.1, RMS -0.001 mm
 	/// (106-head1060 and 1061: +1.3 and +0.3 points, +0.018 and +0.019 mm, a kept piece 13 % of
-	/// whose vertices are > 1 mm off). Of
-	/// what the size rule drops on the bench's 48 scenes (2026-12-07), this keeps 7 % of the
-	/// vertices and 0.2 % of the badly placed ones (pieces whose median is > 1 mm off). Fresh
-	/// booths 6400-6411 and 7200-7211 (48 scenes): 45 unchanged, 6404 +1.3 points / +0.004 mm,
-	/// RMS at most +0.007 mm.
+	/// whose vertices are > 1 mm off). Of what the size rule drops on the bench's 48 scenes
+	/// (2026-12-07), this keeps 7 % of the vertices and 0.2 % of the badly placed ones (pieces
+	/// whose median is > 1 mm off). Fresh booths 6400-6411 and 7200-7211 (48 scenes): 45
+	/// unchanged, 6404 +1.3 points / +0.004 mm, RMS at most +0.007 mm.
 	double piece_two_pair_fraction = 0.2;
 	/// The surface's outline is trimmed by this many cells: a cell there is fed only by points at
 	/// their pairs' matched borders (1-2 mm off 5-8 times as often as inside: bench booth 103,
