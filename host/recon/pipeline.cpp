@@ -467,6 +467,8 @@ std::string report_json(const ReconReport &r)
 	j["surface"] = {{"input_points", r.surface.input_points}, {"cells", r.surface.cells},
 			{"merged", r.surface.merged}, {"vertices", r.surface.vertices},
 			{"outliers", r.surface.outliers}, {"trimmed", r.surface.trimmed},
+			{"piece_triangles_dropped", r.surface.piece_triangles_dropped},
+			{"piece_triangles_two_pairs", r.surface.piece_triangles_two_pairs},
 			{"triangles", r.surface.triangles}, {"spacing_mm", r.surface.spacing_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},

@@ -392,11 +392,13 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		kept.reserve(mesh.triangles.size());
 		for (const cv::Vec3i &t : mesh.triangles) {
 			const size_t r = size_t(find(t[0]));
-			if (size[r] >= min_size || (params.piece_two_pair_fraction > 0 &&
-						 merged[r] >= params.piece_two_pair_fraction * vertices[r]))
+			const bool two_pair_piece = params.piece_two_pair_fraction > 0 &&
+						    merged[r] >= params.piece_two_pair_fraction * vertices[r];
+			if (size[r] >= min_size || two_pair_piece)
 				kept.push_back(t);
 			else
 				stats.piece_triangles_dropped++;
+			stats.piece_triangles_two_pairs += size[r] < min_size && two_pair_piece;
 		}
 		mesh.triangles.swap(kept);
 	}

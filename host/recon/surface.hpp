@@ -68,6 +68,7 @@ struct SurfaceStats {
 	int outliers = 0;    // cells dropped by the median test
 	int trimmed = 0;     // cells dropped on the surface's outline (trim_border_cells)
 	int piece_triangles_dropped = 0; // triangles of pieces split off the main surface
+	int piece_triangles_two_pairs = 0; // ... of small pieces kept as two pairs agree on them
 	int vertices = 0, triangles = 0;
 	double spacing_mm = 0;
 };

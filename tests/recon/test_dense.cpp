@@ -1174,6 +1174,8 @@ void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
 		    one_pair, s_one.piece_triangles_dropped, two_pairs);
 	assert_int_equal(one_pair, 0);
 	assert_true(s_one.piece_triangles_dropped > 0);
+	assert_int_equal(s_one.piece_triangles_two_pairs, 0);
+	assert_true(s_two.piece_triangles_two_pairs > 0);
 	// The patch's cells, less its trimmed outline: ~ (2 degrees / 0.22-degree cells)^2.
 	assert_true(two_pairs > 40);
 	assert_int_equal(s_two.piece_triangles_dropped, 0);
