@@ -74,6 +74,29 @@ void window_ncc(const cv::Mat &a, const cv::Mat &b, int block, cv::Mat *ret_ncc,
 	cv::sqrt(va, *ret_std_a);
 }
 
+// World points into the pair's rectified views: each camera's rotation composed with its
+// rectification once, for the many points of a guide.
+struct RectifiedProjection {
+	RectifiedProjection(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b)
+		: rp(rp), Ra(rp.R1 * a.R), Rb(rp.R2 * b.R), Ta(rp.R1 * a.T), Tb(rp.R2 * b.T)
+	{
+	}
+	// The left view's x, y and the disparity x_a - x_b of world point w; false when it is not in
+	// front of both cameras.
+	bool operator()(const cv::Vec3d &w, cv::Point3d *ret) const
+	{
+		const cv::Vec3d qa = Ra * w + Ta, qb = Rb * w + Tb;
+		if (!(qa[2] > 1e-6 && qb[2] > 1e-6))
+			return false;
+		const double x = rp.f * qa[0] / qa[2] + rp.cx1;
+		*ret = cv::Point3d(x, rp.f * qa[1] / qa[2] + rp.cy, x - (rp.f * qb[0] / qb[2] + rp.cx2));
+		return true;
+	}
+	const RectifiedPair &rp;
+	cv::Matx33d Ra, Rb;
+	cv::Vec3d Ta, Tb;
+};
+
 // Disparities (rectified pixels) a point can have in the pair when it lies within `depth_mm`
 // of where the two optical axes pass closest, and within ±`side_mm` across them.
 void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const CameraModel &b, double depth_mm,
@@ -86,16 +109,16 @@ void volume_disparity_range(const RectifiedPair &rp, const CameraModel &a, const
 	cv::Vec3d side = axis.cross(a.R.t() * cv::Vec3d(0, 1, 0));
 	side *= 1.0 / std::max(1e-9, cv::norm(side));
 	const cv::Vec3d up = side.cross(axis);
+	const RectifiedProjection project(rp, a, b);
 	double lo = 1e9, hi = -1e9;
 	for (int k = 0; k < 27; ++k) {
 		const cv::Vec3d p = centre + axis * ((k % 3 - 1) * depth_mm) + side * ((k / 3 % 3 - 1) * side_mm) +
 				    up * ((k / 9 - 1) * side_mm);
-		const cv::Vec3d ra = rp.R1 * (a.R * p + a.T), rb = rp.R2 * (b.R * p + b.T);
-		if (ra[2] <= 0 || rb[2] <= 0)
+		cv::Point3d q;
+		if (!project(p, &q))
 			continue;
-		const double d = (rp.f * ra[0] / ra[2] + rp.cx1) - (rp.f * rb[0] / rb[2] + rp.cx2);
-		lo = std::min(lo, d);
-		hi = std::max(hi, d);
+		lo = std::min(lo, q.z);
+		hi = std::max(hi, q.z);
 	}
 	*ret_lo = lo;
 	*ret_hi = hi;
@@ -195,20 +218,15 @@ cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const Cam
 	std::vector<double> nearest_right(size_t(cols * rows), none);
 	std::vector<cv::Point3d> projected; // left x, y, disparity
 	projected.reserve(points.size());
-	const cv::Matx33d Ra = rp.R1 * a.R, Rb = rp.R2 * b.R;
-	const cv::Vec3d Ta = rp.R1 * a.T, Tb = rp.R2 * b.T;
+	const RectifiedProjection project(rp, a, b);
 	for (const cv::Point3f &p : points) {
-		const cv::Vec3d w(p.x, p.y, p.z), qa = Ra * w + Ta, qb = Rb * w + Tb;
-		if (!(qa[2] > 1e-6 && qb[2] > 1e-6))
+		cv::Point3d q;
+		if (!project(cv::Vec3d(p.x, p.y, p.z), &q) || !(inside(q.x) && q.y >= 0 && q.y < rp.size.height))
 			continue;
-		const double x = rp.f * qa[0] / qa[2] + rp.cx1, y = rp.f * qa[1] / qa[2] + rp.cy;
-		const double d = x - (rp.f * qb[0] / qb[2] + rp.cx2);
-		if (!(inside(x) && y >= 0 && y < rp.size.height))
-			continue;
-		projected.emplace_back(x, y, d);
-		if (inside(x - d)) {
-			double &n = nearest_right[cell_of(x - d, y)];
-			n = std::max(n, d);
+		projected.push_back(q);
+		if (inside(q.x - q.z)) {
+			double &n = nearest_right[cell_of(q.x - q.z, q.y)];
+			n = std::max(n, q.z);
 		}
 	}
 	std::vector<cv::Point2d> best_at(size_t(cols * rows));
