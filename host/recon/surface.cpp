@@ -125,6 +125,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 	std::vector<cv::Point3f> sum_wp(n, cv::Point3f(0, 0, 0));
 	std::vector<float> sum_w(n, 0.f);
 	std::vector<unsigned char> from(n, 0); // bit per cloud (first 8)
+	auto two_or_more = [&](size_t c) { return (from[c] & (from[c] - 1)) != 0; };
 	const float agree = float(params.agree_mm);
 	for (const Sample &s : samples)
 		splat(s, [&](size_t c, float w) {
@@ -145,7 +146,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			pos[c] = sum_wp[c] * (1.f / sum_w[c]);
 			radius[c] = float(cv::norm(pos[c] - centre));
 			stats.cells++;
-			stats.merged += (from[c] & (from[c] - 1)) != 0;
+			stats.merged += two_or_more(c);
 		}
 	// Smoothing: each vertex moves to the weighted mean of its agreeing 3x3 neighbourhood.
 	for (int pass = 0; pass < params.smooth_passes; ++pass) {
@@ -306,7 +307,6 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 	// Vertices: one per cell with a radius.
 	Mesh mesh;
 	std::vector<int> vid(n, -1);
-	std::vector<unsigned char> two_pairs; // per vertex: its cell was averaged from two or more clouds
 	for (int y = 0; y < H; ++y)
 		for (int x = 0; x < W; ++x) {
 			const size_t c = size_t(y) * size_t(W) + size_t(x);
@@ -314,7 +314,6 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 				continue;
 			vid[c] = int(mesh.positions.size());
 			mesh.positions.push_back(pos[c]);
-			two_pairs.push_back((from[c] & (from[c] - 1)) != 0);
 		}
 	// Triangles: two per grid square (one when a corner is missing), none across a jump.
 	const double max_edge = params.max_edge_steps * stats.spacing_mm;
@@ -381,11 +380,12 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 		std::vector<int> size(parent.size(), 0), vertices(parent.size(), 0), merged(parent.size(), 0);
 		for (const cv::Vec3i &t : mesh.triangles)
 			size[size_t(find(t[0]))]++;
-		for (size_t i = 0; i < parent.size(); ++i) {
-			const size_t r = size_t(find(int(i)));
-			vertices[r]++;
-			merged[r] += two_pairs[i];
-		}
+		for (size_t c = 0; c < n; ++c)
+			if (vid[c] >= 0) {
+				const size_t r = size_t(find(vid[c]));
+				vertices[r]++;
+				merged[r] += two_or_more(c);
+			}
 		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
 		const double min_size = params.min_piece_fraction * largest;
 		std::vector<cv::Vec3i> kept;
