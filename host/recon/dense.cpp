@@ -252,34 +252,42 @@ cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const Cam
 
 } // namespace
 
-// The prior: the code's piecewise-linear disparity where its triangles are small; the coarse
-// search where they are not (its range is the seeds' disparities plus a margin, so it cannot
-// reach another copy of the slide); the long triangles that bridge such holes where the coarse
-// search found nothing. Also returns where the pattern falls (`pattern_lit`): only those pixels
-// keep a prior, so the coarse search runs on them only.
-static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const cv::Mat &frame_b,
-			   const RectifiedPair &rp, const CameraModel &a, const CameraModel &b,
-			   const std::vector<cv::Point2d> &seeds, const std::vector<double> &seed_d,
-			   const DenseParams &params, const std::vector<cv::Point3f> *guide, cv::Mat *ret_lit,
-			   DenseStats *stats)
+// The code's own prior, which every match of the pair starts from: its piecewise-linear disparity
+// where its triangles are small (`tight`) and over the long ones too (`loose`), where the pattern
+// falls (`pattern_lit`), and the bounding box of the lit pixels the small triangles miss.
+static void code_prior(const PreparedPair &pp, const DenseParams &params, PreparedPair *ret)
 {
-	const bool coded = int(seeds.size()) >= params.min_seeds;
-	cv::Mat tight = coded ? disparity_prior(rp.size, seeds, seed_d, params.tight_edge_factor,
-						 params.extrapolate_spacings, &stats->median_spacing_px)
-			      : cv::Mat(rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-	const double pitch = stats->median_spacing_px > 0 ? 2 * stats->median_spacing_px : params.default_pitch_px;
-	*ret_lit = pattern_lit(grey_l32, pitch, params);
-	cv::Mat loose = coded ? disparity_prior(rp.size, seeds, seed_d, params.max_seed_edge_factor,
-						 params.extrapolate_spacings, nullptr)
-			      : tight.clone();
-	cv::Mat need = *ret_lit & ~has_value(tight), nz;
-	cv::findNonZero(need, nz);
-	const int lit_px = cv::countNonZero(*ret_lit);
-	stats->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	const bool coded = int(pp.seeds.size()) >= params.min_seeds;
+	ret->tight = coded ? disparity_prior(pp.rp.size, pp.seeds, pp.seed_d, params.tight_edge_factor,
+					     params.extrapolate_spacings, &ret->median_spacing_px)
+			   : cv::Mat(pp.rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	const double pitch = ret->median_spacing_px > 0 ? 2 * ret->median_spacing_px : params.default_pitch_px;
+	ret->lit = pattern_lit(pp.grey_l32, pitch, params);
+	ret->loose = coded ? disparity_prior(pp.rp.size, pp.seeds, pp.seed_d, params.max_seed_edge_factor,
+					     params.extrapolate_spacings, nullptr)
+			   : ret->tight.clone();
+	cv::Mat nz;
+	cv::findNonZero(ret->lit & ~has_value(ret->tight), nz);
+	ret->uncovered = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
+	const int lit_px = cv::countNonZero(ret->lit);
+	ret->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+}
+
+// One match's prior: the code's small triangles; where they give none, the guide's points (the
+// guided pass); where neither does, the coarse search (its range is the seeds' disparities plus
+// a margin, so it cannot reach another copy of the slide); the long triangles that bridge such
+// holes where the coarse search found nothing. Only lit pixels keep a prior, so the coarse
+// search runs on them only.
+static cv::Mat match_prior(const PreparedPair &pp, const std::vector<cv::Point3f> *guide, DenseStats *stats)
+{
+	const DenseParams &params = pp.params;
+	const bool coded = int(pp.seeds.size()) >= params.min_seeds;
+	cv::Mat tight = pp.tight.clone();
+	cv::Rect need = pp.uncovered;
 	// The guided pass: the dense points fill what the code's small triangles miss, before the
 	// coarse search, which keeps only what neither reaches.
 	if (guide && !guide->empty()) {
-		const cv::Mat guided = guide_disparity(rp, a, b, *guide, params);
+		const cv::Mat guided = guide_disparity(pp.rp, pp.a, pp.b, *guide, params);
 		for (int y = 0; y < tight.rows; ++y) {
 			float *tr = tight.ptr<float>(y);
 			const float *gr = guided.ptr<float>(y);
@@ -289,25 +297,26 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 					stats->guided_pixels++;
 				}
 		}
-		need = *ret_lit & ~has_value(tight);
-		cv::findNonZero(need, nz);
+		cv::Mat nz;
+		cv::findNonZero(pp.lit & ~has_value(tight), nz);
+		need = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
 	}
 	if (!params.coarse)
-		return coded ? loose : tight;
-	if (nz.empty())
+		return coded ? pp.loose.clone() : tight;
+	if (need.empty())
 		return tight;
 	// The seeds' range, widened to the working volume's when they are none or in one corner.
 	double lo = std::numeric_limits<double>::infinity(), hi = -lo;
 	if (coded) {
-		lo = *std::min_element(seed_d.begin(), seed_d.end());
-		hi = *std::max_element(seed_d.begin(), seed_d.end());
+		lo = *std::min_element(pp.seed_d.begin(), pp.seed_d.end());
+		hi = *std::max_element(pp.seed_d.begin(), pp.seed_d.end());
 		const double margin = 0.15 * (hi - lo) + 2 * params.residual_px;
 		lo -= margin;
 		hi += margin;
 	}
-	if (!coded || stats->seed_cover < params.min_seed_cover) {
+	if (!coded || pp.seed_cover < params.min_seed_cover) {
 		double vlo, vhi;
-		volume_disparity_range(rp, a, b, params.volume_depth_mm, params.volume_side_mm, &vlo, &vhi);
+		volume_disparity_range(pp.rp, pp.a, pp.b, params.volume_depth_mm, params.volume_side_mm, &vlo, &vhi);
 		if (vhi > vlo) {
 			lo = std::min(lo, vlo);
 			hi = std::max(hi, vhi);
@@ -317,12 +326,12 @@ static cv::Mat build_prior(const cv::Mat &left, const cv::Mat &grey_l32, const c
 	if (!(hi > lo))
 		return tight;
 	cv::Mat right;
-	cv::remap(frame_b, right, rp.map2x, rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-	const cv::Mat coarse = coarse_disparity(left, right, lo, hi, cv::boundingRect(nz), params);
+	cv::remap(pp.frame_b, right, pp.rp.map2x, pp.rp.map2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	const cv::Mat coarse = coarse_disparity(pp.left, right, lo, hi, need, params);
 	cv::Mat prior = tight;
 	for (int y = 0; y < prior.rows; ++y) {
 		float *pr = prior.ptr<float>(y);
-		const float *cr = coarse.ptr<float>(y), *lr = loose.ptr<float>(y);
+		const float *cr = coarse.ptr<float>(y), *lr = pp.loose.ptr<float>(y);
 		for (int x = 0; x < prior.cols; ++x) {
 			if (pr[x] == pr[x])
 				continue;
@@ -374,36 +383,62 @@ cv::Mat steep_pixels(const cv::Mat &valid, const cv::Mat &disparity, const Dense
 	return bad;
 }
 
-void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
+RefineViews refine_views(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+			 const RectifiedPair &rp, double scale, cv::Rect region)
+{
+	RefineViews v;
+	region &= cv::Rect(cv::Point(0, 0), rp.size);
+	if (region.empty() || !(scale > 0))
+		return v;
+	v.region = region;
+	v.scale = scale;
+	// Rectified again at `scale` times the matching resolution, with the same geometry scaled, so
+	// that refinement x = scale * matching x; the left view over `region`, the right one over its
+	// rows and the whole width: a match reads it wherever its disparity lands.
+	const double k = scale;
+	const double ox = region.x * k, oy = region.y * k;
+	const cv::Size size_l(int(std::lround(region.width * k)), int(std::lround(region.height * k)));
+	const cv::Size size_r(int(std::lround(rp.size.width * k)), size_l.height);
+	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
+	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
+	cv::Mat m1x, m1y, m2x, m2y, ga, gb;
+	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(rp.R1), cv::Mat(Ka), size_l, CV_32FC1, m1x,
+				    m1y);
+	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), cv::Mat(rp.R2), cv::Mat(Kb), size_r, CV_32FC1, m2x,
+				    m2y);
+	cv::cvtColor(frame_a, ga, cv::COLOR_BGR2GRAY);
+	cv::cvtColor(frame_b, gb, cv::COLOR_BGR2GRAY);
+	cv::remap(ga, v.left, m1x, m1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::remap(gb, v.right, m2x, m2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	return v;
+}
+
+void refine_subpixel(const RefineViews &views, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
 		     RefinedDisparity *ret_refined)
 {
 	if (ret_refined)
 		*ret_refined = RefinedDisparity();
-	// The pair rectified again at twice the matching resolution, with the same geometry doubled,
-	// so that full-resolution x = 2 * matching x.
 	// Only the bounding box of the valid pixels is refined (the face is a fraction of the frame).
 	cv::Mat nz;
 	cv::findNonZero(valid, nz);
-	if (nz.empty())
+	if (nz.empty() || views.left.empty())
 		return;
-	const cv::Rect roi = cv::boundingRect(nz);
-	const double k = params.refine_scale;
-	const cv::Size size(int(std::lround(roi.width * k)), int(std::lround(roi.height * k)));
-	const double ox = roi.x * k, oy = roi.y * k;
-	const cv::Matx33d Ka(rp.f * k, 0, rp.cx1 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
-	const cv::Matx33d Kb(rp.f * k, 0, rp.cx2 * k - ox, 0, rp.f * k, rp.cy * k - oy, 0, 0, 1);
-	cv::Mat m1x, m1y, m2x, m2y, ga, gb, L, R;
-	cv::initUndistortRectifyMap(cv::Mat(a.K), cv::Mat(a.dist), cv::Mat(rp.R1), cv::Mat(Ka), size, CV_32FC1, m1x, m1y);
-	cv::initUndistortRectifyMap(cv::Mat(b.K), cv::Mat(b.dist), cv::Mat(rp.R2), cv::Mat(Kb), size, CV_32FC1, m2x, m2y);
-	cv::cvtColor(frame_a, ga, cv::COLOR_BGR2GRAY);
-	cv::cvtColor(frame_b, gb, cv::COLOR_BGR2GRAY);
-	cv::remap(ga, L, m1x, m1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-	cv::remap(gb, R, m2x, m2y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-	L.convertTo(L, CV_32F);
-	R.convertTo(R, CV_32F);
+	const cv::Rect roi = cv::boundingRect(nz) & views.region;
+	if (roi.empty())
+		return;
+	const double k = views.scale;
+	// The roi's corner in the views, and in refinement pixels of the rectified frame.
+	const int cx0 = int(std::lround((roi.x - views.region.x) * k));
+	const int cy0 = int(std::lround((roi.y - views.region.y) * k));
+	const cv::Size size(std::min(int(std::lround(roi.width * k)), views.left.cols - cx0),
+			    std::min(int(std::lround(roi.height * k)), views.left.rows - cy0));
+	if (size.width <= 0 || size.height <= 0)
+		return;
+	const double ox = views.region.x * k + cx0, oy = views.region.y * k + cy0;
+	cv::Mat L, R;
+	views.left(cv::Rect(cv::Point(cx0, cy0), size)).convertTo(L, CV_32F);
+	views.right(cv::Rect(0, cy0, views.right.cols, size.height)).convertTo(R, CV_32F);
 	// The disparity at full resolution (NaN-free: invalid pixels carry 0 and are masked).
-	// The right view is rectified with the left's column offset, so x stays x - disparity.
 	cv::Mat d0(roi.size(), CV_32F, cv::Scalar(0)), v32;
 	(*disparity)(roi).copyTo(d0, valid(roi));
 	valid(roi).convertTo(v32, CV_32F, 1.0 / 255);
@@ -412,7 +447,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	// refined pixel then moved by a quarter of the disparity's slope (test_dense's
 	// refinement_starts_where_the_disparity_is).
 	cv::Mat D, W;
-	const cv::Matx23d to_matching(1 / k, 0, 0, 0, 1 / k, 0);
+	const cv::Matx23d to_matching(1 / k, 0, ox / k - roi.x, 0, 1 / k, oy / k - roi.y);
 	cv::warpAffine(d0, D, to_matching, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
 	cv::warpAffine(v32, W, to_matching, size, cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_CONSTANT);
 	// Normalised: bilinear weights on invalid neighbours (their 0) would pull a pixel next to a
@@ -439,7 +474,7 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 			const float *dr = D.ptr<float>(y);
 			float *xr = mx.ptr<float>(y), *yr = my.ptr<float>(y);
 			for (int x = 0; x < size.width; ++x) {
-				xr[x] = float(x) - dr[x];
+				xr[x] = float(x + ox) - dr[x]; // the right view's column: it starts at 0
 				yr[x] = float(y);
 			}
 		}
@@ -471,11 +506,11 @@ void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camer
 	for (int y = 0; y < roi.height; ++y) {
 		float *out = disparity->ptr<float>(roi.y + y) + roi.x;
 		const uchar *vr = valid.ptr<uchar>(roi.y + y) + roi.x;
-		const int yy = std::min(size.height - 1, int(std::lround(y * k)));
+		const int yy = std::min(size.height - 1, int(std::lround((roi.y + y) * k - oy)));
 		for (int x = 0; x < roi.width; ++x) {
 			if (!vr[x])
 				continue;
-			const int xx = std::min(size.width - 1, int(std::lround(x * k)));
+			const int xx = std::min(size.width - 1, int(std::lround((roi.x + x) * k - ox)));
 			out[x] += (D.at<float>(yy, xx) - D_in.at<float>(yy, xx)) / float(k);
 		}
 	}
@@ -994,22 +1029,25 @@ cv::Mat disparity_prior(cv::Size size, const std::vector<cv::Point2d> &seeds_lef
 	return prior;
 }
 
-Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
-		  DenseStats *ret_stats, DensePairDebug *ret_debug, const std::vector<cv::Point3f> *guide)
+Status prepare_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		    const PartialModel &model, const DenseParams &params, PreparedPair *ret)
 {
-	DenseStats stats;
-	DenseCloud cloud;
-	cloud.cam_a = model.cam_a;
-	cloud.cam_b = model.cam_b;
 	if (frame_a.empty() || frame_b.empty() || frame_a.type() != CV_8UC3 || frame_b.type() != CV_8UC3)
 		return Status::error(-EINVAL, "dense: frames must be 8-bit 3-channel");
 	if (params.residual_px < 1 || params.residual_px > 64 || params.block < 1 || params.block % 2 == 0)
 		return Status::error(-EINVAL, "dense: residual_px must be 1..64 and block odd");
-	RectifiedPair rp;
-	Status s = rectify_pair(a, b, params.scale, &rp);
+	PreparedPair pp;
+	pp.params = params;
+	pp.frame_a = frame_a;
+	pp.frame_b = frame_b;
+	pp.a = a;
+	pp.b = b;
+	pp.cam_a = model.cam_a;
+	pp.cam_b = model.cam_b;
+	Status s = rectify_pair(a, b, params.scale, &pp.rp);
 	if (!s.ok())
 		return s;
+	const RectifiedPair &rp = pp.rp;
 
 	// Seeds: the sparse model's matches in rectified coordinates.
 	std::vector<cv::Point2d> pa, pb;
@@ -1020,21 +1058,45 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 		pb.push_back(m.b);
 	}
 	const std::vector<cv::Point2d> ra = rectify_points(rp, a, 0, pa), rb = rectify_points(rp, b, 1, pb);
-	std::vector<cv::Point2d> seeds;
-	std::vector<double> seed_d;
 	for (size_t i = 0; i < ra.size(); ++i) {
 		if (!(ra[i].x >= 0 && ra[i].y >= 0 && ra[i].x < rp.size.width && ra[i].y < rp.size.height))
 			continue;
-		seeds.push_back(ra[i]);
-		seed_d.push_back(ra[i].x - rb[i].x);
+		pp.seeds.push_back(ra[i]);
+		pp.seed_d.push_back(ra[i].x - rb[i].x);
 	}
-	stats.seeds = int(seeds.size());
-	cv::Mat left, grey_l, grey_l32;
-	cv::remap(frame_a, left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
-	cv::cvtColor(left, grey_l, cv::COLOR_BGR2GRAY);
-	grey_l.convertTo(grey_l32, CV_32F);
-	cv::Mat lit;
-	cv::Mat prior = build_prior(left, grey_l32, frame_b, rp, a, b, seeds, seed_d, params, guide, &lit, &stats);
+	cv::remap(frame_a, pp.left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
+	cv::cvtColor(pp.left, pp.grey_l, cv::COLOR_BGR2GRAY);
+	pp.grey_l.convertTo(pp.grey_l32, CV_32F);
+	code_prior(pp, params, &pp);
+	// A match keeps only lit pixels, so the refinement never reads beyond their bounding box.
+	if (params.refine_iterations > 0) {
+		cv::Mat nz;
+		cv::findNonZero(pp.lit, nz);
+		if (!nz.empty())
+			pp.refine = refine_views(frame_a, frame_b, a, b, rp, params.refine_scale, cv::boundingRect(nz));
+	}
+	*ret = std::move(pp);
+	return {};
+}
+
+Status match_pair(const PreparedPair &pp, const std::vector<cv::Point3f> *guide, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug)
+{
+	if (pp.left.empty())
+		return Status::error(-EINVAL, "dense: the pair is not prepared");
+	const DenseParams &params = pp.params;
+	const RectifiedPair &rp = pp.rp;
+	const CameraModel &a = pp.a;
+	const cv::Mat &frame_b = pp.frame_b, &left = pp.left, &grey_l = pp.grey_l, &grey_l32 = pp.grey_l32,
+		      &lit = pp.lit;
+	DenseStats stats;
+	stats.seeds = int(pp.seeds.size());
+	stats.median_spacing_px = pp.median_spacing_px;
+	stats.seed_cover = pp.seed_cover;
+	DenseCloud cloud;
+	cloud.cam_a = pp.cam_a;
+	cloud.cam_b = pp.cam_b;
+	cv::Mat prior = match_prior(pp, guide, &stats);
 	// Why each pixel has no point, for the debug output only.
 	const bool why = ret_debug != nullptr;
 	cv::Mat reason;
@@ -1180,8 +1242,7 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	RefinedDisparity refined;
 	cv::Mat total_refined; // what the refinement left, to tell the pixels changed after it
 	if (params.refine_iterations > 0) {
-		refine_subpixel(frame_a, frame_b, a, b, rp, valid, params, &total,
-				params.points_at_refine_scale ? &refined : nullptr);
+		refine_subpixel(pp.refine, valid, params, &total, params.points_at_refine_scale ? &refined : nullptr);
 		if (refined.scale > 1)
 			total_refined = total.clone();
 	}
@@ -1315,6 +1376,17 @@ Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraMo
 	if (ret_stats)
 		*ret_stats = stats;
 	return {};
+}
+
+Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug, const std::vector<cv::Point3f> *guide)
+{
+	PreparedPair pp;
+	const Status s = prepare_pair(frame_a, frame_b, a, b, model, params, &pp);
+	if (!s.ok())
+		return s;
+	return match_pair(pp, guide, ret_cloud, ret_stats, ret_debug);
 }
 
 } // namespace facescan::recon

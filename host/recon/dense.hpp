@@ -352,17 +352,60 @@ struct RefinedDisparity {
 	cv::Mat disparity; // CV_32F, roi.size() * scale
 };
 
+/// What the refinement reads: both frames rectified again at `scale` times the matching
+/// resolution (the same geometry scaled: refinement x = scale × matching x), grey (CV_8U). `left`
+/// covers the matching pixels of `region`, from refinement pixel (region.x, region.y) × scale;
+/// `right` the same rows over the rectified right view's whole width, from column 0, so that a
+/// match reads it wherever its disparity lands.
+struct RefineViews {
+	cv::Rect region; // matching pixels
+	double scale = 0;
+	cv::Mat left, right;
+};
+
+/// The refinement's views of a pair over `region` (matching pixels; empty views when it is).
+RefineViews refine_views(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+			 const RectifiedPair &rp, double scale, cv::Rect region);
+
 /// Refines `disparity` (rectified matching pixels, CV_32F, valid where `valid` != 0) in place by
-/// Lucas-Kanade along the rows on the pair rectified at params.refine_scale times `rp`'s scale.
-/// With `ret_refined` (and an integer refine_scale), also the refined disparity at that scale.
-void refine_subpixel(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
-		     const RectifiedPair &rp, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
+/// Lucas-Kanade along the rows on `views` (over the valid pixels' bounding box within
+/// views.region). With `ret_refined` (and an integer views.scale), also the refined disparity at
+/// that scale.
+void refine_subpixel(const RefineViews &views, const cv::Mat &valid, const DenseParams &params, cv::Mat *disparity,
 		     RefinedDisparity *ret_refined = nullptr);
 
-/// Dense matching of one pair. `model` is the pair's triangulated sparse model (its sources give
-/// the seeds). Frames are the pair's 8-bit BGR pattern frames.
-/// `guide`: dense points (world mm) that give the prior where the code's small triangles do not
-/// (`DenseParams::guided_pass`), or nullptr.
+/// One pair made ready for matching (`prepare_pair`): what a match computes from the frames, the
+/// cameras and the code's seeds alone, so that the guided pass (DenseParams::guided_pass) matches
+/// the pair again without computing it again.
+struct PreparedPair {
+	DenseParams params;
+	cv::Mat frame_a, frame_b; // the pair's pattern frames (shared, not copied)
+	CameraModel a, b;
+	int cam_a = -1, cam_b = -1;
+	RectifiedPair rp;
+	std::vector<cv::Point2d> seeds; // the code's matches in the rectified left view
+	std::vector<double> seed_d;	// ... and their disparities
+	cv::Mat left, grey_l, grey_l32; // the rectified left view (BGR, grey, grey CV_32F)
+	cv::Mat lit;			// where the pattern falls (CV_8U)
+	cv::Mat tight, loose; // the code's disparity over its small triangles, and its long ones too
+	cv::Rect uncovered;   // bounding box of the lit pixels `tight` misses
+	double median_spacing_px = 0; // of the seeds
+	double seed_cover = 0;	      // fraction of the lit pixels `tight` covers
+	RefineViews refine;	      // over the lit pixels' bounding box
+};
+
+/// Prepares one pair for `match_pair`. `model` is the pair's triangulated sparse model (its sources
+/// give the seeds); frames are the pair's 8-bit BGR pattern frames. -EINVAL for frames that are
+/// not, parameters out of range or a degenerate pair.
+Status prepare_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
+		    const PartialModel &model, const DenseParams &params, PreparedPair *ret);
+
+/// Dense matching of a prepared pair, with its params. `guide`: dense points (world mm) that give
+/// the prior where the code's small triangles do not (`DenseParams::guided_pass`), or nullptr.
+Status match_pair(const PreparedPair &pair, const std::vector<cv::Point3f> *guide, DenseCloud *ret_cloud,
+		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr);
+
+/// `prepare_pair`, then `match_pair`: one pair matched once.
 Status dense_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const CameraModel &a, const CameraModel &b,
 		  const PartialModel &model, const DenseParams &params, DenseCloud *ret_cloud,
 		  DenseStats *ret_stats, DensePairDebug *ret_debug = nullptr,

@@ -235,15 +235,18 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 		std::vector<DenseCloud> clouds(n - 1);
 		std::vector<DensePairDebug> dbg(n - 1);
 		std::vector<Status> pair_status(n - 1);
+		std::vector<PreparedPair> prepared(n - 1);
 		// The pairs are independent, and much of a pair's time is single-threaded (the prior,
 		// the refinement, the flat refill, the filters): they run concurrently so that no core
 		// idles while one pair is in such a part.
 		cv::parallel_for_(cv::Range(0, int(n - 1)), [&](const cv::Range &r) {
 			for (int i = r.start; i < r.end; ++i) {
 				const size_t p = size_t(i);
-				pair_status[p] = dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p],
-							    params.dense, &clouds[p], &report.pairs[p].dense,
-							    ret_debug ? &dbg[p] : nullptr);
+				pair_status[p] = prepare_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1],
+							      models[p], params.dense, &prepared[p]);
+				if (pair_status[p].ok())
+					pair_status[p] = match_pair(prepared[p], nullptr, &clouds[p],
+								    &report.pairs[p].dense, ret_debug ? &dbg[p] : nullptr);
 			}
 		});
 		// Each pair again, its prior filled where the code's small triangles give none by every
@@ -265,9 +268,8 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 					DenseCloud cloud;
 					DenseStats stats;
 					DensePairDebug d;
-					if (dense_pair(set.frames[p], set.frames[p + 1], cams[p], cams[p + 1], models[p], params.dense,
-						       &cloud, &stats, ret_debug ? &d : nullptr, &guide)
-						    .ok()) {
+					DensePairDebug *debug = ret_debug ? &d : nullptr;
+					if (match_pair(prepared[p], &guide, &cloud, &stats, debug).ok()) {
 						clouds[p] = std::move(cloud);
 						report.pairs[p].dense = stats;
 						dbg[p] = std::move(d);
@@ -275,6 +277,7 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 				}
 			});
 		}
+		prepared.clear();
 		for (size_t p = 0; p + 1 < n; ++p) {
 			s = pair_status[p];
 			if (ret_debug && s.ok() && !dbg[p].left.empty()) {

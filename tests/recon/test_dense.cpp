@@ -1016,7 +1016,9 @@ static void refinement_keeps_disparity_next_to_holes(void **)
 		for (int x = 0; x < rp.size.width; ++x)
 			disparity.at<float>(y, x) = valid.at<uchar>(y, x) ? float(60 + 0.02 * x) : 0.f;
 	const cv::Mat before = disparity.clone();
-	refine_subpixel(fa, fb, cams[0], cams[1], rp, valid, DenseParams(), &disparity);
+	const DenseParams params;
+	const cv::Rect frame(cv::Point(0, 0), rp.size);
+	refine_subpixel(refine_views(fa, fb, cams[0], cams[1], rp, params.refine_scale, frame), valid, params, &disparity);
 	// Lucas-Kanade moves a pixel by at most 3 x 0.5 px at the cameras' resolution (0.75 here), and
 	// only where the rectified frames' own borders give it a gradient; no pixel next to a hole
 	// may move more (the blend with the hole's 0 moved each by ~15 px).
@@ -1037,21 +1039,14 @@ static void refinement_keeps_disparity_next_to_holes(void **)
 	assert_int_equal(next_to_hole_moved, 0);
 }
 
-// The refinement works at the cameras' resolution, where full-resolution x is twice matching x
-// (the rectification's geometry doubled). Started from the sphere's true disparity it must stay
-// there whatever the disparity's slope: upsampled with pixel centres aligned instead
-// (cv::resize's convention, before 2026-12-06) each pixel began a quarter of a matching pixel
-// away and was refined to the truth there, which moved every matching pixel by about a quarter
-// of the slope (measured: the change regressed on the slope with coefficient 0.175; now 0.033).
-static void refinement_starts_where_the_disparity_is(void **)
+// The sphere's true disparity in pair 1-2 rectified at the render's own resolution: each
+// rectified left pixel's ray (from the camera's centre through its point at 500 mm) meets the
+// sphere; that point in the rectified right view. `valid` where both cameras see it.
+static void sphere_disparity(const SphereScene &s, RectifiedPair *ret_rp, cv::Mat *ret_truth, cv::Mat *ret_valid)
 {
-	SphereScene s;
-	render_sphere(&s);
 	const CameraModel &a = s.cams[1], &b = s.cams[2];
-	RectifiedPair rp;
+	RectifiedPair &rp = *ret_rp;
 	assert_true(rectify_pair(a, b, 1.0, &rp).ok());
-	// The true disparity: each rectified left pixel's ray (from the camera's centre through its
-	// point at 500 mm) meets the sphere; that point in the rectified right view.
 	const double d500 = rp.f * rp.baseline / 500 + (rp.cx1 - rp.cx2);
 	cv::Mat truth(rp.size, CV_32F, cv::Scalar(0)), valid(rp.size, CV_8U, cv::Scalar(0));
 	for (int y = 0; y < rp.size.height; ++y)
@@ -1071,11 +1066,32 @@ static void refinement_starts_where_the_disparity_is(void **)
 			truth.at<float>(y, x) = float(x - rb.x);
 			valid.at<uchar>(y, x) = 255;
 		}
+	*ret_truth = truth;
+	*ret_valid = valid;
+}
+
+// The refinement works at the cameras' resolution, where full-resolution x is twice matching x
+// (the rectification's geometry doubled). Started from the sphere's true disparity it must stay
+// there whatever the disparity's slope: upsampled with pixel centres aligned instead
+// (cv::resize's convention, before 2026-12-06) each pixel began a quarter of a matching pixel
+// away and was refined to the truth there, which moved every matching pixel by about a quarter
+// of the slope (measured: the change regressed on the slope with coefficient 0.175; now 0.033).
+static void refinement_starts_where_the_disparity_is(void **)
+{
+	SphereScene s;
+	render_sphere(&s);
+	const CameraModel &a = s.cams[1], &b = s.cams[2];
+	RectifiedPair rp;
+	cv::Mat truth, valid;
+	sphere_disparity(s, &rp, &truth, &valid);
 	// Away from the sphere's outline, where the slope is steep.
 	cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 12);
 	assert_true(cv::countNonZero(valid) > 20000);
 	cv::Mat disparity = truth.clone();
-	refine_subpixel(s.frames[1], s.frames[2], a, b, rp, valid, DenseParams(), &disparity);
+	const DenseParams params;
+	const cv::Rect frame(cv::Point(0, 0), rp.size);
+	refine_subpixel(refine_views(s.frames[1], s.frames[2], a, b, rp, params.refine_scale, frame), valid, params,
+			&disparity);
 	// The change against the slope along the rows, over the pixels the refinement moved.
 	std::vector<double> change;
 	double sum_gg = 0, sum_ge = 0;
@@ -1098,6 +1114,51 @@ static void refinement_starts_where_the_disparity_is(void **)
 	assert_true(std::fabs(per_slope) < 0.08);
 	// What Lucas-Kanade's windows leave on this half-resolution render (measured 0.149 px).
 	assert_true(median < 0.2);
+}
+
+// The refinement reads the right view wherever a match lands: its left view covers the matched
+// pixels' box, but a match's right window can lie beyond that box by the disparity. Before
+// 2026-12-07 the right view was cut to the same box, and the matches landing beyond it read black:
+// they kept SGBM's value or took a wrong step (one pair of bench booth 103-scan1039: 43 % of its
+// refined pixels). Refined on views over the box, they must come out as on views over the frame.
+static void refinement_reads_the_right_view_beyond_the_left_box(void **)
+{
+	SphereScene s;
+	render_sphere(&s);
+	RectifiedPair rp;
+	cv::Mat truth, valid;
+	sphere_disparity(s, &rp, &truth, &valid);
+	cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 12);
+	cv::Mat nz;
+	cv::findNonZero(valid, nz);
+	const cv::Rect box = cv::boundingRect(nz), frame(cv::Point(0, 0), rp.size);
+	const DenseParams params;
+	cv::Mat on_box = truth + 0.3f, on_frame = on_box.clone();
+	const cv::Mat &fa = s.frames[1], &fb = s.frames[2];
+	const CameraModel &a = s.cams[1], &b = s.cams[2];
+	refine_subpixel(refine_views(fa, fb, a, b, rp, params.refine_scale, box), valid, params, &on_box);
+	refine_subpixel(refine_views(fa, fb, a, b, rp, params.refine_scale, frame), valid, params, &on_frame);
+	// Beyond: the match's window (6 camera pixels either side, 3 matching) leaves the box.
+	int beyond = 0, beyond_moved = 0, differ = 0;
+	double worst = 0;
+	for (int y = 0; y < rp.size.height; ++y)
+		for (int x = 0; x < rp.size.width; ++x) {
+			if (!valid.at<uchar>(y, x))
+				continue;
+			const double xr = x - truth.at<float>(y, x);
+			const double d = std::fabs(on_box.at<float>(y, x) - on_frame.at<float>(y, x));
+			worst = std::max(worst, d);
+			differ += d > 1e-3;
+			if (xr < box.x + 4 || xr > box.br().x - 5) {
+				beyond++;
+				beyond_moved += std::fabs(on_box.at<float>(y, x) - truth.at<float>(y, x) - 0.3f) > 1e-3;
+			}
+		}
+	std::printf("refinement beyond the left box: %d px, %d of them refined; against views over the frame %d px "
+		    "differ, worst %.5f px\n", beyond, beyond_moved, differ, worst);
+	assert_true(beyond > 2000);
+	assert_true(beyond_moved > beyond / 2);
+	assert_int_equal(differ, 0);
 }
 
 // Ramps of known slope: falling along the rows is a surface stretched in the second view (kept
@@ -1201,6 +1262,7 @@ int main(void)
 		cmocka_unit_test(dark_gaps_bridged_between_squares),
 		cmocka_unit_test(refinement_keeps_disparity_next_to_holes),
 		cmocka_unit_test(refinement_starts_where_the_disparity_is),
+		cmocka_unit_test(refinement_reads_the_right_view_beyond_the_left_box),
 		cmocka_unit_test(steep_test_keeps_stretched_surfaces),
 		cmocka_unit_test(fusion_makes_one_sheet),
 		cmocka_unit_test(fusion_trims_the_outline_not_the_holes),
