@@ -252,25 +252,28 @@ cv::Mat guide_disparity(const RectifiedPair &rp, const CameraModel &a, const Cam
 
 } // namespace
 
-// The code's own prior, which every match of the pair starts from: its piecewise-linear disparity
-// where its triangles are small (`tight`) and over the long ones too (`loose`), where the pattern
-// falls (`pattern_lit`), and the bounding box of the lit pixels the small triangles miss.
-static void code_prior(const PreparedPair &pp, const DenseParams &params, PreparedPair *ret)
+// The code's own prior, which every match of the pair starts from, from its seeds and rectified
+// left view: its piecewise-linear disparity where its triangles are small (`tight`) and over the
+// long ones too (`loose`), where the pattern falls (`pattern_lit`), and the bounding box of the
+// lit pixels the small triangles miss.
+static void code_prior(PreparedPair *pp)
 {
-	const bool coded = int(pp.seeds.size()) >= params.min_seeds;
-	ret->tight = coded ? disparity_prior(pp.rp.size, pp.seeds, pp.seed_d, params.tight_edge_factor,
-					     params.extrapolate_spacings, &ret->median_spacing_px)
-			   : cv::Mat(pp.rp.size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
-	const double pitch = ret->median_spacing_px > 0 ? 2 * ret->median_spacing_px : params.default_pitch_px;
-	ret->lit = pattern_lit(pp.grey_l32, pitch, params);
-	ret->loose = coded ? disparity_prior(pp.rp.size, pp.seeds, pp.seed_d, params.max_seed_edge_factor,
-					     params.extrapolate_spacings, nullptr)
-			   : ret->tight.clone();
+	const DenseParams &params = pp->params;
+	const cv::Size size = pp->rp.size;
+	const bool coded = int(pp->seeds.size()) >= params.min_seeds;
+	pp->tight = coded ? disparity_prior(size, pp->seeds, pp->seed_d, params.tight_edge_factor,
+					    params.extrapolate_spacings, &pp->median_spacing_px)
+			  : cv::Mat(size, CV_32F, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+	const double pitch = pp->median_spacing_px > 0 ? 2 * pp->median_spacing_px : params.default_pitch_px;
+	pp->lit = pattern_lit(pp->grey_l32, pitch, params);
+	pp->loose = coded ? disparity_prior(size, pp->seeds, pp->seed_d, params.max_seed_edge_factor,
+					    params.extrapolate_spacings, nullptr)
+			  : pp->tight.clone();
 	cv::Mat nz;
-	cv::findNonZero(ret->lit & ~has_value(ret->tight), nz);
-	ret->uncovered = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
-	const int lit_px = cv::countNonZero(ret->lit);
-	ret->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	cv::findNonZero(pp->lit & ~has_value(pp->tight), nz);
+	pp->uncovered = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
+	const int lit_px = cv::countNonZero(pp->lit);
+	pp->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
 }
 
 // One match's prior: the code's small triangles; where they give none, the guide's points (the
@@ -1067,7 +1070,7 @@ Status prepare_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camera
 	cv::remap(frame_a, pp.left, rp.map1x, rp.map1y, cv::INTER_LINEAR, cv::BORDER_CONSTANT);
 	cv::cvtColor(pp.left, pp.grey_l, cv::COLOR_BGR2GRAY);
 	pp.grey_l.convertTo(pp.grey_l32, CV_32F);
-	code_prior(pp, params, &pp);
+	code_prior(&pp);
 	// A match keeps only lit pixels, so the refinement never reads beyond their bounding box.
 	if (params.refine_iterations > 0) {
 		cv::Mat nz;
