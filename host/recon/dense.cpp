@@ -269,11 +269,10 @@ static void code_prior(PreparedPair *pp)
 	pp->loose = coded ? disparity_prior(size, pp->seeds, pp->seed_d, params.max_seed_edge_factor,
 					    params.extrapolate_spacings, nullptr)
 			  : pp->tight.clone();
-	cv::Mat nz;
-	cv::findNonZero(pp->lit & ~has_value(pp->tight), nz);
-	pp->uncovered = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
+	const cv::Mat uncovered = pp->lit & ~has_value(pp->tight);
+	pp->uncovered = cv::boundingRect(uncovered);
 	const int lit_px = cv::countNonZero(pp->lit);
-	pp->seed_cover = coded && lit_px > 0 ? 1 - double(nz.total()) / lit_px : 0;
+	pp->seed_cover = coded && lit_px > 0 ? 1 - double(cv::countNonZero(uncovered)) / lit_px : 0;
 }
 
 // One match's prior: the code's small triangles; where they give none, the guide's points (the
@@ -300,9 +299,7 @@ static cv::Mat match_prior(const PreparedPair &pp, const std::vector<cv::Point3f
 					stats->guided_pixels++;
 				}
 		}
-		cv::Mat nz;
-		cv::findNonZero(pp.lit & ~has_value(tight), nz);
-		need = nz.empty() ? cv::Rect() : cv::boundingRect(nz);
+		need = cv::boundingRect(pp.lit & ~has_value(tight));
 	}
 	if (!params.coarse)
 		return coded ? pp.loose.clone() : tight;
@@ -1041,7 +1038,6 @@ Status prepare_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camera
 		return Status::error(-EINVAL, "dense: residual_px must be 1..64 and block odd");
 	PreparedPair pp;
 	pp.params = params;
-	pp.frame_a = frame_a;
 	pp.frame_b = frame_b;
 	pp.a = a;
 	pp.b = b;
@@ -1072,12 +1068,8 @@ Status prepare_pair(const cv::Mat &frame_a, const cv::Mat &frame_b, const Camera
 	pp.grey_l.convertTo(pp.grey_l32, CV_32F);
 	code_prior(&pp);
 	// A match keeps only lit pixels, so the refinement never reads beyond their bounding box.
-	if (params.refine_iterations > 0) {
-		cv::Mat nz;
-		cv::findNonZero(pp.lit, nz);
-		if (!nz.empty())
-			pp.refine = refine_views(frame_a, frame_b, a, b, rp, params.refine_scale, cv::boundingRect(nz));
-	}
+	if (params.refine_iterations > 0)
+		pp.refine = refine_views(frame_a, frame_b, a, b, rp, params.refine_scale, cv::boundingRect(pp.lit));
 	*ret = std::move(pp);
 	return {};
 }

@@ -379,7 +379,7 @@ void refine_subpixel(const RefineViews &views, const cv::Mat &valid, const Dense
 /// the pair again without computing it again.
 struct PreparedPair {
 	DenseParams params;
-	cv::Mat frame_a, frame_b; // the pair's pattern frames (shared, not copied)
+	cv::Mat frame_b; // the right pattern frame (shared, not copied): warped and coarse-searched
 	CameraModel a, b;
 	int cam_a = -1, cam_b = -1;
 	RectifiedPair rp;
