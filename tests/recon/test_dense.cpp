@@ -318,6 +318,21 @@ void coarse_search_spans_the_volume_when_seeds_cluster(void **)
 	assert_false(stats_spread.coarse_over_volume);
 }
 
+// Points of the sphere `out_mm` beyond its surface, every degree of elevation within ±`el_max` and
+// of azimuth from `az_from` up to `az_to` (excluded): a guide made of other pairs' points.
+static std::vector<cv::Point3f> sphere_grid(const SphereScene &s, double el_max, double az_from, double az_to,
+					    double out_mm)
+{
+	std::vector<cv::Point3f> points;
+	for (double el = -el_max; el <= el_max; el += 1)
+		for (double az = az_from; az < az_to; az += 1) {
+			const double e = el * CV_PI / 180, z = az * CV_PI / 180;
+			const cv::Vec3d n(std::cos(e) * std::sin(z), std::sin(e), std::cos(e) * std::cos(z));
+			points.emplace_back(cv::Vec3f(s.centre + n * (s.radius + out_mm)));
+		}
+	return points;
+}
+
 // A pair with no code and no coarse search is guided by other pairs' points alone: points all
 // over the sphere, its back half too (what the left camera cannot see: the nearest point of each
 // cell wins) and 1 mm too far out (a neighbour's error: the residual search takes it up), give a
@@ -326,13 +341,7 @@ void guide_points_give_the_prior(void **)
 {
 	SphereScene s;
 	render_sphere(&s);
-	std::vector<cv::Point3f> guide;
-	for (double el = -88; el <= 88; el += 1)
-		for (double az = -180; az < 180; az += 1) {
-			const double e = el * CV_PI / 180, z = az * CV_PI / 180;
-			const cv::Vec3d n(std::cos(e) * std::sin(z), std::sin(e), std::cos(e) * std::cos(z));
-			guide.emplace_back(cv::Vec3f(s.centre + n * (s.radius + 1.0)));
-		}
+	const std::vector<cv::Point3f> guide = sphere_grid(s, 88, -180, 180, 1.0);
 	DenseParams params;
 	params.scale = 1.0;
 	params.coarse = false;
@@ -367,13 +376,7 @@ void prepared_pair_matches_again_unchanged(void **)
 	SphereScene s;
 	render_sphere(&s);
 	const PartialModel seeds = sphere_seeds(s, 1, 2, 4);
-	std::vector<cv::Point3f> guide;
-	for (double el = -60; el <= 60; el += 1)
-		for (double az = -90; az <= 90; az += 1) {
-			const double e = el * CV_PI / 180, z = az * CV_PI / 180;
-			const cv::Vec3d n(std::cos(e) * std::sin(z), std::sin(e), std::cos(e) * std::cos(z));
-			guide.emplace_back(cv::Vec3f(s.centre + n * s.radius));
-		}
+	const std::vector<cv::Point3f> guide = sphere_grid(s, 60, -90, 91, 0);
 	DenseParams params;
 	params.scale = 1.0;
 	PreparedPair pp;
@@ -1175,9 +1178,7 @@ static void refinement_reads_the_right_view_beyond_the_left_box(void **)
 	cv::Mat truth, valid;
 	sphere_disparity(s, &rp, &truth, &valid);
 	cv::erode(valid, valid, cv::Mat(), cv::Point(-1, -1), 12);
-	cv::Mat nz;
-	cv::findNonZero(valid, nz);
-	const cv::Rect box = cv::boundingRect(nz), frame(cv::Point(0, 0), rp.size);
+	const cv::Rect box = cv::boundingRect(valid), frame(cv::Point(0, 0), rp.size);
 	const DenseParams params;
 	cv::Mat on_box = truth + 0.3f, on_frame = on_box.clone();
 	const cv::Mat &fa = s.frames[1], &fb = s.frames[2];
