@@ -419,11 +419,9 @@ void refine_subpixel(const RefineViews &views, const cv::Mat &valid, const Dense
 	if (ret_refined)
 		*ret_refined = RefinedDisparity();
 	// Only the bounding box of the valid pixels is refined (the face is a fraction of the frame).
-	cv::Mat nz;
-	cv::findNonZero(valid, nz);
-	if (nz.empty() || views.left.empty())
+	if (views.left.empty())
 		return;
-	const cv::Rect roi = cv::boundingRect(nz) & views.region;
+	const cv::Rect roi = cv::boundingRect(valid) & views.region;
 	if (roi.empty())
 		return;
 	const double k = views.scale;
@@ -1139,11 +1137,9 @@ Status match_pair(const PreparedPair &pp, const std::vector<cv::Point3f> *guide,
 	// SGBM over the bounding box of the prior only (plus its own margins).
 	cv::Mat disp16(rp.size, CV_16S, cv::Scalar((mind - 1) * 16));
 	{
-		cv::Mat has = has_value(prior), nz;
-		cv::findNonZero(has, nz);
-		if (!nz.empty()) {
+		cv::Rect roi = cv::boundingRect(has_value(prior));
+		if (!roi.empty()) {
 			const int m = nd + params.block + 4;
-			cv::Rect roi = cv::boundingRect(nz);
 			roi = cv::Rect(roi.x - m, roi.y - params.block, roi.width + 2 * m, roi.height + 2 * params.block) &
 			      cv::Rect(cv::Point(0, 0), rp.size);
 			if (roi.width > nd + params.block + 1) {
