@@ -348,7 +348,7 @@ Status reconstruct(const CaptureSet &set, const Pattern &pattern, const ReconPar
 								     clouds[p].confidence});
 		timer.lap("register_dense");
 		Mesh dense;
-		s = fuse_dense(clouds, cams, params.surface, &dense, &report.surface);
+		s = fuse_dense(clouds, mesh.positions, cams, params.surface, &dense, &report.surface);
 		if (s.ok()) {
 			mesh = std::move(dense);
 			report.dense = true;
@@ -472,6 +472,7 @@ std::string report_json(const ReconReport &r)
 			{"outliers", r.surface.outliers}, {"trimmed", r.surface.trimmed},
 			{"piece_triangles_dropped", r.surface.piece_triangles_dropped},
 			{"piece_triangles_two_pairs", r.surface.piece_triangles_two_pairs},
+			{"piece_triangles_code", r.surface.piece_triangles_code},
 			{"triangles", r.surface.triangles}, {"spacing_mm", r.surface.spacing_mm}};
 	j["texture"] = {{"charts", r.texture.charts},
 			{"untextured_triangles", r.texture.untextured},

@@ -21,8 +21,9 @@ struct Sample {
 
 } // namespace
 
-Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
-		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats)
+Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::Point3f> &code_points,
+		  const std::vector<CameraModel> &cameras, const SurfaceParams &params, Mesh *ret_mesh,
+		  SurfaceStats *ret_stats)
 {
 	SurfaceStats stats;
 	// A cell's vertex is its samples' weighted mean: with no weight floor an empty cell would
@@ -388,17 +389,68 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<Camer
 			}
 		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
 		const double min_size = params.min_piece_fraction * largest;
+		// The code's points vouch for small pieces: a code point with a vertex of a piece within
+		// `piece_code_mm` counts for that piece, and vouches for the piece's cells within
+		// `piece_code_reach_mm` of its own (a piece can be right near the code and wrong beyond).
+		// The candidates are the vertices of the cells around the code point's direction.
+		std::vector<int> code_near(parent.size(), 0);
+		std::vector<char> vouched(n, 0);
+		if (params.piece_code_points > 0 && params.piece_code_mm > 0) {
+			const int near = int(std::ceil(params.piece_code_mm / stats.spacing_mm)) + 1;
+			const int reach = int(std::ceil(params.piece_code_reach_mm / stats.spacing_mm));
+			const float within2 = float(params.piece_code_mm * params.piece_code_mm);
+			std::vector<int> counted; // the pieces this code point counts for
+			for (const cv::Point3f &q : code_points) {
+				const cv::Vec3d d = cv::Vec3d(cv::Point3d(q) - vf.centre);
+				if (!(cv::norm(d) > 1e-6))
+					continue;
+				const cv::Point2f g = to_cells(angles_of(d));
+				if (!(g.x >= 0 && g.y >= 0 && g.x < float(W) && g.y < float(H)))
+					continue;
+				const int gx = int(g.x), gy = int(g.y);
+				counted.clear();
+				for (int y = std::max(0, gy - near); y <= std::min(H - 1, gy + near); ++y)
+					for (int x = std::max(0, gx - near); x <= std::min(W - 1, gx + near); ++x) {
+						const int v = vid[size_t(y) * size_t(W) + size_t(x)];
+						if (v < 0)
+							continue;
+						const cv::Point3f e = mesh.positions[size_t(v)] - q;
+						const int r = find(v);
+						if (e.dot(e) <= within2 &&
+						    std::find(counted.begin(), counted.end(), r) == counted.end())
+							counted.push_back(r);
+					}
+				for (const int r : counted) {
+					code_near[size_t(r)]++;
+					for (int y = std::max(0, gy - reach); y <= std::min(H - 1, gy + reach); ++y)
+						for (int x = std::max(0, gx - reach); x <= std::min(W - 1, gx + reach); ++x) {
+							const size_t c = size_t(y) * size_t(W) + size_t(x);
+							if ((x - gx) * (x - gx) + (y - gy) * (y - gy) <= reach * reach &&
+							    vid[c] >= 0 && find(vid[c]) == r)
+								vouched[c] = 1;
+						}
+				}
+			}
+		}
+		std::vector<size_t> cell_of(mesh.positions.size(), 0);
+		for (size_t c = 0; c < n; ++c)
+			if (vid[c] >= 0)
+				cell_of[size_t(vid[c])] = c;
 		std::vector<cv::Vec3i> kept;
 		kept.reserve(mesh.triangles.size());
 		for (const cv::Vec3i &t : mesh.triangles) {
 			const size_t r = size_t(find(t[0]));
 			const bool two_pair_piece = params.piece_two_pair_fraction > 0 &&
 						    merged[r] >= params.piece_two_pair_fraction * vertices[r];
-			if (size[r] >= min_size || two_pair_piece)
+			const bool code_piece = params.piece_code_points > 0 && code_near[r] >= params.piece_code_points &&
+						vouched[cell_of[size_t(t[0])]] && vouched[cell_of[size_t(t[1])]] &&
+						vouched[cell_of[size_t(t[2])]];
+			if (size[r] >= min_size || two_pair_piece || code_piece)
 				kept.push_back(t);
 			else
 				stats.piece_triangles_dropped++;
 			stats.piece_triangles_two_pairs += size[r] < min_size && two_pair_piece;
+			stats.piece_triangles_code += size[r] < min_size && !two_pair_piece && code_piece;
 		}
 		mesh.triangles.swap(kept);
 	}

@@ -51,6 +51,19 @@ struct SurfaceParams {
 	/// whose median is > 1 mm off). Fresh booths 6400-6411 and 7200-7211 (48 scenes): 45
 	/// unchanged, 6404 +1.3 points / +0.004 mm, RMS at most +0.007 mm.
 	double piece_two_pair_fraction = 0.2;
+	/// ... or, within `piece_code_reach_mm` of the code's own points (the paper's sparse mesh,
+	/// from decoded squares, not from the dense search) that lie within `piece_code_mm` of a
+	/// vertex of theirs, when at least `piece_code_points` do (0: off). A wrong piece comes from
+	/// a search that strayed where the code said nothing; a right one is often cut off by a band
+	/// no projector lights, with the code read on it. 2026-12-08, the pieces the two rules above
+	/// drop on 10 scenes (bench 111 x 3, 107, held-out 8007, 8008, fresh 8800, 8801, 8802, 8809):
+	/// 25 of them > 1 mm off (median to the truth), none with a code point within 2 mm; 272 right,
+	/// 20 of them (51k triangles) with two code points within 1 mm. Whole pieces were kept at
+	/// first: bench 111-head1112 then kept two whose median is right but whose tail is not (p90
+	/// 1.8-1.9 mm), RMS 0.226 -> 0.272; near the code points only, 0.226.
+	int piece_code_points = 2;
+	double piece_code_mm = 1.0;
+	double piece_code_reach_mm = 5.0;
 	/// The surface's outline is trimmed by this many cells: a cell there is fed only by points at
 	/// their pairs' matched borders (1-2 mm off 5-8 times as often as inside: bench booth 103,
 	/// 111, fresh booth 3104), and the pairs' own rim (DenseParams::rim_px) is kept one pixel
@@ -69,13 +82,16 @@ struct SurfaceStats {
 	int trimmed = 0;     // cells dropped on the surface's outline (trim_border_cells)
 	int piece_triangles_dropped = 0; // triangles of pieces split off the main surface
 	int piece_triangles_two_pairs = 0; // ... of small pieces kept as two pairs agree on them
+	int piece_triangles_code = 0;      // ... of small pieces kept as the code's points lie on them
 	int vertices = 0, triangles = 0;
 	double spacing_mm = 0;
 };
 
 /// Fuses `clouds` (world mm, registered) into `ret_mesh` (positions, triangles, normals).
-/// -ENODATA when nothing is left to mesh.
-Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<CameraModel> &cameras,
-		  const SurfaceParams &params, Mesh *ret_mesh, SurfaceStats *ret_stats);
+/// `code_points` (world mm; may be empty) are the paper's sparse mesh's vertices, which vouch for
+/// small pieces (SurfaceParams::piece_code_points). -ENODATA when nothing is left to mesh.
+Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::Point3f> &code_points,
+		  const std::vector<CameraModel> &cameras, const SurfaceParams &params, Mesh *ret_mesh,
+		  SurfaceStats *ret_stats);
 
 } // namespace facescan::recon

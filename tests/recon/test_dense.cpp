@@ -472,7 +472,7 @@ void fusion_makes_one_sheet(void **)
 	}
 	Mesh mesh;
 	SurfaceStats stats;
-	assert_true(fuse_dense(clouds, cams, SurfaceParams(), &mesh, &stats).ok());
+	assert_true(fuse_dense(clouds, {}, cams, SurfaceParams(), &mesh, &stats).ok());
 	std::printf("fusion: %d vertices, %d triangles, %d merged cells, spacing %.2f mm\n", stats.vertices,
 		    stats.triangles, stats.merged, stats.spacing_mm);
 	assert_true(stats.merged > 1000);
@@ -492,10 +492,10 @@ void fusion_makes_one_sheet(void **)
 	assert_true(double(stats.vertices) < 1.05 * double(stats.cells));
 	// Nothing to fuse is an error, not a crash; so is a weight floor of 0 (every empty cell
 	// would be a vertex at 0 / 0: it crashed before 2026-12-07).
-	assert_int_equal(fuse_dense({}, cams, SurfaceParams(), &mesh, &stats).code(), -ENODATA);
+	assert_int_equal(fuse_dense({}, {}, cams, SurfaceParams(), &mesh, &stats).code(), -ENODATA);
 	SurfaceParams no_floor;
 	no_floor.min_weight = 0;
-	assert_int_equal(fuse_dense(clouds, cams, no_floor, &mesh, &stats).code(), -EINVAL);
+	assert_int_equal(fuse_dense(clouds, {}, cams, no_floor, &mesh, &stats).code(), -EINVAL);
 }
 
 // A sphere cap with a hole of about 4 x 4 cells in its middle: trimming takes about one cell off
@@ -520,7 +520,7 @@ void fusion_trims_the_outline_not_the_holes(void **)
 		SurfaceParams params;
 		params.trim_border_cells = trim;
 		Mesh mesh;
-		assert_true(fuse_dense(clouds, cams, params, &mesh, ret_stats).ok());
+		assert_true(fuse_dense(clouds, {}, cams, params, &mesh, ret_stats).ok());
 		*ret_min_az = 1e9;
 		*ret_near_hole = 0;
 		for (const cv::Point3f &p : mesh.positions) {
@@ -577,7 +577,7 @@ void fusion_drops_spikes_keeps_steps(void **)
 		SurfaceParams params;
 		params.median_radius = median_radius;
 		Mesh mesh;
-		assert_true(fuse_dense(clouds, cams, params, &mesh, ret_stats).ok());
+		assert_true(fuse_dense(clouds, {}, cams, params, &mesh, ret_stats).ok());
 		*ret_off = *ret_low = *ret_high = 0;
 		for (const cv::Point3f &p : mesh.positions) {
 			const double az = std::atan2(p.x, p.z) / deg, r = cv::norm(p);
@@ -649,7 +649,7 @@ void fusion_plane_fit_takes_noise_keeps_slopes(void **)
 		SurfaceParams params;
 		params.plane_fit_mm = fit_mm;
 		Mesh mesh;
-		assert_true(fuse_dense(clouds, cams, params, &mesh, nullptr).ok());
+		assert_true(fuse_dense(clouds, {}, cams, params, &mesh, nullptr).ok());
 		double xmax = -1e9, sum2 = 0;
 		for (const cv::Point3f &p : mesh.positions)
 			xmax = std::max(xmax, double(p.x));
@@ -1245,8 +1245,9 @@ static void steep_test_keeps_stretched_surfaces(void **)
 // A sphere cap (one pair's) and, 3 degrees beyond its edge (a gap of ~4.7 mm, far wider than a
 // triangle's longest allowed edge), a patch 2 x 2 degrees: far under 2 % of the cap, so a
 // piece the size rule would drop. Seen by one pair only, it goes (a lone sheet is more often a
-// mismatch than not); seen by two pairs that agree on it, it stays.
-void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
+// mismatch than not); seen by two pairs that agree on it, it stays; seen by one pair with two of
+// the code's points on it, it stays too — with one, or with two 3 mm off it, it goes.
+void fusion_keeps_small_pieces_two_pairs_or_the_code_vouch_for(void **)
 {
 	const std::vector<CameraModel> cams = synth::ring();
 	const double R = 90, deg = CV_PI / 180;
@@ -1262,9 +1263,10 @@ void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
 			}
 	};
 	// Vertices of the mesh on the patch (azimuth beyond the cap's edge).
-	auto patch_vertices = [&](const std::vector<DenseCloud> &clouds, SurfaceStats *ret_stats) {
+	auto patch_vertices = [&](const std::vector<DenseCloud> &clouds, const std::vector<cv::Point3f> &code,
+				  SurfaceStats *ret_stats) {
 		Mesh mesh;
-		assert_true(fuse_dense(clouds, cams, SurfaceParams(), &mesh, ret_stats).ok());
+		assert_true(fuse_dense(clouds, code, cams, SurfaceParams(), &mesh, ret_stats).ok());
 		int on_patch = 0;
 		for (const cv::Point3f &p : mesh.positions)
 			on_patch += std::atan2(p.x, p.z) / deg > 21;
@@ -1277,7 +1279,7 @@ void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
 	add(&two[1], 23, 25, -1, 1, R + 0.1);
 	add(&two[2], 23, 25, -1, 1, R - 0.1);
 	SurfaceStats s_one, s_two;
-	const int one_pair = patch_vertices(one, &s_one), two_pairs = patch_vertices(two, &s_two);
+	const int one_pair = patch_vertices(one, {}, &s_one), two_pairs = patch_vertices(two, {}, &s_two);
 	std::printf("small piece: %d vertices kept seen by one pair (%d triangles dropped), %d seen by two\n",
 		    one_pair, s_one.piece_triangles_dropped, two_pairs);
 	assert_int_equal(one_pair, 0);
@@ -1287,6 +1289,56 @@ void fusion_keeps_small_pieces_two_pairs_agree_on(void **)
 	// The patch's cells, less its trimmed outline: ~ (2 degrees / 0.22-degree cells)^2.
 	assert_true(two_pairs > 40);
 	assert_int_equal(s_two.piece_triangles_dropped, 0);
+	assert_int_equal(s_two.piece_triangles_code, 0);
+
+	// The code's points at azimuth 24 and elevations -0.5 / +0.5 (inside the patch), radius r.
+	auto code_at = [&](double r, int count) {
+		std::vector<cv::Point3f> code;
+		for (int i = 0; i < count; ++i) {
+			const double el = (i - 0.5) * deg, az = 24 * deg;
+			code.emplace_back(cv::Point3d(r * std::cos(el) * std::sin(az), r * std::sin(el),
+						      r * std::cos(el) * std::cos(az)));
+		}
+		code.emplace_back(cv::Point3f(0, 0, float(R))); // one on the cap, which vouches for nothing
+		return code;
+	};
+	SurfaceStats s_code, s_code_one, s_code_off;
+	const int vouched = patch_vertices(one, code_at(R, 2), &s_code);
+	const int one_point = patch_vertices(one, code_at(R, 1), &s_code_one);
+	const int off = patch_vertices(one, code_at(R + 3, 2), &s_code_off);
+	std::printf("small piece, one pair: %d vertices kept with two code points on it, %d with one, %d with two "
+		    "3 mm off\n",
+		    vouched, one_point, off);
+	assert_true(vouched > 40);
+	assert_true(s_code.piece_triangles_code > 0);
+	assert_int_equal(s_code.piece_triangles_dropped, 0);
+	assert_int_equal(one_point, 0);
+	assert_int_equal(s_code_one.piece_triangles_code, 0);
+	assert_int_equal(off, 0);
+	assert_int_equal(s_code_off.piece_triangles_code, 0);
+	assert_true(s_code_off.piece_triangles_dropped > 0);
+	// The code's points change nothing else: the cap is the same with and without them.
+	assert_int_equal(s_code.vertices - vouched, s_one.vertices - one_pair);
+
+	// A long piece (elevation -1 to 11 degrees, ~19 mm) with the code's points at its lower end
+	// only: what lies within piece_code_reach_mm (5 mm, ~3.2 degrees) of them stays, the rest goes.
+	std::vector<DenseCloud> long_piece(2);
+	long_piece[0] = one[0];
+	add(&long_piece[1], 23, 25, -1, 11, R);
+	Mesh mesh;
+	SurfaceStats s_long;
+	assert_true(fuse_dense(long_piece, code_at(R, 2), cams, SurfaceParams(), &mesh, &s_long).ok());
+	double top = -90;
+	int kept = 0;
+	for (const cv::Point3f &p : mesh.positions)
+		if (std::atan2(p.x, p.z) / deg > 21) {
+			kept++;
+			top = std::max(top, std::asin(p.y / cv::norm(p)) / deg);
+		}
+	std::printf("long piece: %d vertices kept, up to elevation %.1f degrees\n", kept, top);
+	assert_true(kept > 40);
+	assert_true(top > 2.5 && top < 4.5);
+	assert_true(s_long.piece_triangles_dropped > 0);
 }
 
 int main(void)
@@ -1316,7 +1368,7 @@ int main(void)
 		cmocka_unit_test(fusion_trims_the_outline_not_the_holes),
 		cmocka_unit_test(fusion_drops_spikes_keeps_steps),
 		cmocka_unit_test(fusion_plane_fit_takes_noise_keeps_slopes),
-		cmocka_unit_test(fusion_keeps_small_pieces_two_pairs_agree_on),
+		cmocka_unit_test(fusion_keeps_small_pieces_two_pairs_or_the_code_vouch_for),
 	};
 	return cmocka_run_group_tests(tests, nullptr, nullptr);
 }
