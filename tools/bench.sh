@@ -9,5 +9,5 @@ set -eu
 here=$(dirname "$0")
 python3 "$here/bench.py" "$@"
 BENCH_DIR=${BENCH_HELDOUT_DIR:-build/bench-heldout} BENCH_BOOTHS=12 BENCH_HEADS=1 \
-	python3 "$here/bench.py" "$@" --first-seed "${BENCH_HELDOUT_SEED:-8000}" \
+	python3 "$here/bench.py" "$@" --first-seed "${BENCH_HELDOUT_SEED:-9200}" \
 	--out docs/benchmarks-heldout.md
