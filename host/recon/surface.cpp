@@ -389,6 +389,9 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 			}
 		const int largest = size.empty() ? 0 : *std::max_element(size.begin(), size.end());
 		const double min_size = params.min_piece_fraction * largest;
+		auto two_pairs = [&](size_t r) {
+			return params.piece_two_pair_fraction > 0 && merged[r] >= params.piece_two_pair_fraction * vertices[r];
+		};
 		// The code's points vouch for small pieces: a code point with a vertex of a piece within
 		// `piece_code_mm` counts for that piece, and vouches for the piece's cells within
 		// `piece_code_reach_mm` of its own (a piece can be right near the code and wrong beyond).
@@ -416,7 +419,8 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 							continue;
 						const cv::Point3f e = mesh.positions[size_t(v)] - q;
 						const int r = find(v);
-						if (e.dot(e) <= within2 &&
+						// Only the pieces the rules above drop need the code's word.
+						if (e.dot(e) <= within2 && size[size_t(r)] < min_size && !two_pairs(size_t(r)) &&
 						    std::find(counted.begin(), counted.end(), r) == counted.end())
 							counted.push_back(r);
 					}
@@ -440,8 +444,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 		kept.reserve(mesh.triangles.size());
 		for (const cv::Vec3i &t : mesh.triangles) {
 			const size_t r = size_t(find(t[0]));
-			const bool two_pair_piece = params.piece_two_pair_fraction > 0 &&
-						    merged[r] >= params.piece_two_pair_fraction * vertices[r];
+			const bool two_pair_piece = two_pairs(r);
 			const bool code_piece = params.piece_code_points > 0 && code_near[r] >= params.piece_code_points &&
 						vouched[cell_of[size_t(t[0])]] && vouched[cell_of[size_t(t[1])]] &&
 						vouched[cell_of[size_t(t[2])]];
