@@ -392,12 +392,14 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 		auto two_pairs = [&](size_t r) {
 			return params.piece_two_pair_fraction > 0 && merged[r] >= params.piece_two_pair_fraction * vertices[r];
 		};
+		// What the size and two-pair rules drop.
+		auto dropped = [&](size_t r) { return size[r] < min_size && !two_pairs(r); };
 		// The code's points vouch for small pieces: a code point with a vertex of a piece within
-		// `piece_code_mm` counts for that piece, and vouches for the piece's cells within
-		// `piece_code_reach_mm` of its own (a piece can be right near the code and wrong beyond).
-		// The candidates are the vertices of the cells around the code point's direction.
+		// `piece_code_mm` counts for that piece, and vouches for the piece's vertices whose cells lie
+		// within `piece_code_reach_mm` of its own (a piece can be right near the code and wrong
+		// beyond). The candidates are the vertices of the cells around the code point's direction.
 		std::vector<int> code_near(parent.size(), 0);
-		std::vector<char> vouched(n, 0);
+		std::vector<char> vouched(mesh.positions.size(), 0); // per vertex
 		if (params.piece_code_points > 0 && params.piece_code_mm > 0) {
 			const int near = int(std::ceil(params.piece_code_mm / stats.spacing_mm)) + 1;
 			const int reach = int(std::ceil(params.piece_code_reach_mm / stats.spacing_mm));
@@ -420,7 +422,7 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 						const cv::Point3f e = mesh.positions[size_t(v)] - q;
 						const int r = find(v);
 						// Only the pieces the rules above drop need the code's word.
-						if (e.dot(e) <= within2 && size[size_t(r)] < min_size && !two_pairs(size_t(r)) &&
+						if (e.dot(e) <= within2 && dropped(size_t(r)) &&
 						    std::find(counted.begin(), counted.end(), r) == counted.end())
 							counted.push_back(r);
 					}
@@ -428,32 +430,28 @@ Status fuse_dense(const std::vector<DenseCloud> &clouds, const std::vector<cv::P
 					code_near[size_t(r)]++;
 					for (int y = std::max(0, gy - reach); y <= std::min(H - 1, gy + reach); ++y)
 						for (int x = std::max(0, gx - reach); x <= std::min(W - 1, gx + reach); ++x) {
-							const size_t c = size_t(y) * size_t(W) + size_t(x);
-							if ((x - gx) * (x - gx) + (y - gy) * (y - gy) <= reach * reach &&
-							    vid[c] >= 0 && find(vid[c]) == r)
-								vouched[c] = 1;
+							const int v = vid[size_t(y) * size_t(W) + size_t(x)];
+							if ((x - gx) * (x - gx) + (y - gy) * (y - gy) <= reach * reach && v >= 0 &&
+							    find(v) == r)
+								vouched[size_t(v)] = 1;
 						}
 				}
 			}
 		}
-		std::vector<size_t> cell_of(mesh.positions.size(), 0);
-		for (size_t c = 0; c < n; ++c)
-			if (vid[c] >= 0)
-				cell_of[size_t(vid[c])] = c;
 		std::vector<cv::Vec3i> kept;
 		kept.reserve(mesh.triangles.size());
 		for (const cv::Vec3i &t : mesh.triangles) {
 			const size_t r = size_t(find(t[0]));
-			const bool two_pair_piece = two_pairs(r);
-			const bool code_piece = params.piece_code_points > 0 && code_near[r] >= params.piece_code_points &&
-						vouched[cell_of[size_t(t[0])]] && vouched[cell_of[size_t(t[1])]] &&
-						vouched[cell_of[size_t(t[2])]];
-			if (size[r] >= min_size || two_pair_piece || code_piece)
+			if (!dropped(r)) {
 				kept.push_back(t);
-			else
+				stats.piece_triangles_two_pairs += size[r] < min_size;
+			} else if (params.piece_code_points > 0 && code_near[r] >= params.piece_code_points &&
+				   vouched[size_t(t[0])] && vouched[size_t(t[1])] && vouched[size_t(t[2])]) {
+				kept.push_back(t);
+				stats.piece_triangles_code++;
+			} else {
 				stats.piece_triangles_dropped++;
-			stats.piece_triangles_two_pairs += size[r] < min_size && two_pair_piece;
-			stats.piece_triangles_code += size[r] < min_size && !two_pair_piece && code_piece;
+			}
 		}
 		mesh.triangles.swap(kept);
 	}
