@@ -1251,12 +1251,15 @@ void fusion_keeps_small_pieces_two_pairs_or_the_code_vouch_for(void **)
 {
 	const std::vector<CameraModel> cams = synth::ring();
 	const double R = 90, deg = CV_PI / 180;
+	// The point at azimuth `az` and elevation `el` (degrees) on the sphere of radius r.
+	auto on_sphere = [&](double az, double el, double r) {
+		return cv::Point3f(cv::Point3d(r * std::cos(el * deg) * std::sin(az * deg), r * std::sin(el * deg),
+					       r * std::cos(el * deg) * std::cos(az * deg)));
+	};
 	auto add = [&](DenseCloud *cloud, double az0, double az1, double el0, double el1, double r) {
 		for (double el = el0; el <= el1 + 1e-9; el += 0.1)
 			for (double az = az0; az <= az1 + 1e-9; az += 0.1) {
-				const cv::Vec3d n(std::cos(el * deg) * std::sin(az * deg), std::sin(el * deg),
-						  std::cos(el * deg) * std::cos(az * deg));
-				cloud->points.emplace_back(cv::Point3d(n * r));
+				cloud->points.push_back(on_sphere(az, el, r));
 				cloud->confidence.push_back(1.f);
 				cloud->border_mm.push_back(
 					float(std::min({az - az0, az1 - az, el - el0, el1 - el}) * deg * R));
@@ -1294,12 +1297,9 @@ void fusion_keeps_small_pieces_two_pairs_or_the_code_vouch_for(void **)
 	// The code's points at azimuth 24 and elevations -0.5 / +0.5 (inside the patch), radius r.
 	auto code_at = [&](double r, int count) {
 		std::vector<cv::Point3f> code;
-		for (int i = 0; i < count; ++i) {
-			const double el = (i - 0.5) * deg, az = 24 * deg;
-			code.emplace_back(cv::Point3d(r * std::cos(el) * std::sin(az), r * std::sin(el),
-						      r * std::cos(el) * std::cos(az)));
-		}
-		code.emplace_back(cv::Point3f(0, 0, float(R))); // one on the cap, which vouches for nothing
+		for (int i = 0; i < count; ++i)
+			code.push_back(on_sphere(24, i - 0.5, r));
+		code.push_back(on_sphere(0, 0, R)); // one on the cap, which vouches for nothing
 		return code;
 	};
 	SurfaceStats s_code, s_code_one, s_code_off;
